@@ -1,0 +1,24 @@
+"""jaxbill: rigid-body billiards in JAX.
+
+Importing jaxbill switches JAX to float64 (``jax_enable_x64``): every collision
+time and state is computed in double precision, and the library's accuracy
+claims hold only there.
+"""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from ._collision import collide, orbit, Orbit  # noqa: E402
+from ._stick_in_circle import StickInCircle, energy, angular_momentum, end_points  # noqa: E402
+
+__all__ = [
+    "StickInCircle",
+    "collide",
+    "orbit",
+    "Orbit",
+    "energy",
+    "angular_momentum",
+    "end_points",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,135 @@
+"""First root of a few smooth gap functions, found with steps that cannot skip a root.
+
+The collision time of a spinning body is the first ``t > 0`` at which one of its
+contact gaps ``g_k(t)`` (positive inside the wall) reaches zero while decreasing.
+The gaps are transcendental (a line plus a rotation), may oscillate many times
+before the first root (fast spin), and may touch zero tangentially (grazing), so
+neither Newton's method nor a bracketing solver is safe: both can step over an
+earlier root.
+
+Method (a Taylor-model safe step). Given rigorous bounds on the second
+derivative, ``lower <= g_k'' <= upper`` on the search interval, at the current
+time ``t`` with ``g = g_k(t)`` and ``d = g_k'(t)``:
+
+* ``g_k(t + s) >= g + d s - lower_curv s^2 / 2`` (with ``lower_curv = -lower``).
+  The first positive root ``s_lo`` of that quadratic is a step along which
+  ``g_k`` cannot vanish, so the iteration ``t <- t + min_k s_lo`` never passes
+  the first root of any gap. Near a transversal root ``s_lo`` is a Newton step
+  corrected downwards, so convergence is quadratic; near a double root (a
+  grazing hit) it is linear with a fixed ratio; across a near miss the steps
+  shrink to the gap's minimum and grow again.
+* ``g_k(t + s) <= g + d s + upper_curv s^2 / 2``: its first root ``s_hi``
+  bounds the root from above. The iteration stops once ``s_hi - s_lo`` is below
+  the time resolution, and returns ``t + s_lo`` (the end is still inside the
+  wall, by less than rounding).
+
+A gap at or below zero whose slope is negative is a root at the current time
+(the end is touching and approaching). A gap at zero with a positive slope is
+the end that just bounced: it is departing, so it is not a root, and its step is
+taken from ``max(g, 0)``; this is how the root at ``t = 0`` of the end that just
+bounced is never found again.
+
+The loop is bounded by ``max_steps``; a search that hits the bound reports it
+(``ok = False``) instead of returning a root it did not prove.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+
+# Stop when the root is bracketed to this many ulps of the time scale.
+_TIME_RESOLUTION_ULPS = 4.0
+
+
+def _safe_steps(g, slope, lower_curv, upper_curv):
+    """Lower and upper bounds (s_lo, s_hi) on the distance to each gap's next root.
+
+    ``g >= 0`` is the gap clamped at zero (an end through the wall by rounding
+    is treated as on it).
+    """
+    disc_lo = slope * slope + 2.0 * lower_curv * g
+    root_lo = jnp.sqrt(disc_lo)
+    # Two algebraically equal forms of the quadratic's positive root; each is
+    # free of cancellation on its side of slope = 0.
+    falling = 2.0 * g / (root_lo - slope)
+    rising = (slope + root_lo) / lower_curv
+    s_lo = jnp.where(slope < 0.0, falling, rising)
+    # 0/0 arises only for slope == 0 with no curvature (a motionless gap, which
+    # never vanishes) or with g == 0 (an end resting on the wall with no normal
+    # motion, which no bound can resolve: it is left to the step cap).
+    s_lo = jnp.where(jnp.isnan(s_lo), jnp.where(g > 0.0, jnp.inf, 0.0), s_lo)
+
+    disc_hi = slope * slope - 2.0 * upper_curv * g
+    has_upper_root = (slope < 0.0) & (disc_hi >= 0.0)
+    s_hi = jnp.where(
+        has_upper_root,
+        2.0 * g / (-slope + jnp.sqrt(jnp.maximum(disc_hi, 0.0))),
+        jnp.inf,
+    )
+    return s_lo, s_hi
+
+
+def first_root(
+    gaps_and_slopes: Callable[[jax.Array], tuple[jax.Array, jax.Array]],
+    lower_curv: jax.Array,
+    upper_curv: jax.Array,
+    quiet: tuple[jax.Array, jax.Array],
+    time_scale: jax.Array,
+    max_steps: int,
+):
+    """First time ``t >= 0`` at which one of K gaps reaches zero while falling.
+
+    Args:
+        gaps_and_slopes: ``t -> (g, dg)``, each of shape ``(K,)``: the gaps and
+            their time derivatives at time ``t``.
+        lower_curv: bound ``>= -g_k''(t)`` for all k and all t up to the root.
+        upper_curv: bound ``>= g_k''(t)`` likewise.
+        quiet: ``(t_in, t_out)``, a time interval in which no gap can vanish
+            (empty when ``t_in >= t_out``); the search jumps over it. A search
+            with ``t_out = inf`` that reaches it finds no root.
+        time_scale: a characteristic flight time; the root is resolved to a few
+            ulps of ``max(t, time_scale)``.
+        max_steps: static bound on the number of steps.
+
+    Returns:
+        ``(t_root, index, steps, ok)``: the root (``inf`` when no gap ever
+        vanishes), the index of the gap that vanishes, the number of steps
+        taken, and ``ok = False`` when the step bound was hit first.
+    """
+    eps = jnp.finfo(jnp.float64).eps
+
+    def step(carry):
+        t, _, _, steps = carry
+        # One materialised evaluation: XLA may otherwise recompute the gaps in
+        # each fusion that uses them, contracting to FMA differently, so that
+        # the same gap could test as touching in one place and not in another.
+        gap, slope = jax.lax.optimization_barrier(gaps_and_slopes(t))
+        g = jnp.maximum(gap, 0.0)
+        touching = (g == 0.0) & (slope < 0.0)
+        s_lo, s_hi = _safe_steps(g, slope, lower_curv, upper_curv)
+        index = jnp.argmin(s_lo)
+        s = s_lo[index]
+        t_next = t + s
+        # A safe step that lands in the quiet interval may jump to its end.
+        t_next = jnp.where((t_next >= quiet[0]) & (t_next < quiet[1]), quiet[1], t_next)
+        resolution = _TIME_RESOLUTION_ULPS * eps * jnp.maximum(t, time_scale)
+        # Bracketed to the resolution, or a step below one ulp of t on a
+        # falling gap: either way the root is known as well as t can hold it.
+        converged = ((s_hi[index] - s) <= resolution) | ((t_next == t) & (slope[index] < 0.0))
+        touching_now = jnp.any(touching)
+        index = jnp.where(touching_now, jnp.argmax(touching), index)
+        t_next = jnp.where(touching_now, t, t_next)
+        done = touching_now | converged | jnp.isinf(t_next)
+        return t_next, index, done, steps + 1
+
+    def keep_going(carry):
+        _, _, done, steps = carry
+        return (~done) & (steps < max_steps)
+
+    t_start = jnp.where((quiet[0] <= 0.0) & (quiet[1] > 0.0), quiet[1], 0.0)
+    init = (t_start, jnp.array(0), jnp.isinf(t_start), jnp.array(0))
+    t, index, done, steps = jax.lax.while_loop(keep_going, step, init)
+    return t, index, steps, done

@@ -1,0 +1,360 @@
+"""The stick in a circle: geometry, free flight, contact gaps and the impulse law.
+
+State layout (float64, shape ``(6,)``)::
+
+    [x, y, alpha, vx, vy, omega]
+
+``(x, y)`` is the stick's centre (length units), ``alpha`` the angle of end P1
+from the x axis (radians), ``(vx, vy)`` the centre's velocity and ``omega`` the
+spin (radians per time unit). The ends are ``P1 = c + ell u`` (contact ``+1``)
+and ``P2 = c - ell u`` (contact ``-1``), ``u = (cos alpha, sin alpha)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._first_root import first_root
+
+_ENDS = (1.0, -1.0)  # contact index 0 -> end P1 (+1), index 1 -> end P2 (-1)
+
+# Relative tolerance (in units of R^2) on a contact gap: an end this far outside
+# the circle is "through the wall"; this close to it, it is "on the wall".
+WALL_TOLERANCE = 1e-12
+
+# Static bound on root-finder steps per collision. Typical collisions take a
+# handful; a grazing departure can take a few hundred.
+MAX_ROOT_STEPS = 4096
+
+KINDS = ("rotor", "lens", "circle")
+
+
+def _is_concrete(x) -> bool:
+    return not isinstance(x, jax.core.Tracer)
+
+
+def _check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
+    if not np.all(ok):
+        bad = value[~ok] if value.ndim else value
+        raise ValueError(f"{name} must be {valid}; got {bad.ravel()[:4].tolist()}")
+
+
+class StickInCircle(eqx.Module):
+    """A stick of half-length ``ell`` bouncing elastically inside a fixed circle.
+
+    Args:
+        R: radius of the circle, ``R > 0``.
+        ell: half-length of the stick, ``0 <= ell < R``. ``ell = 0`` is the
+            circle billiard (the spin decouples).
+        mass: total mass ``M > 0`` (default 1).
+        inertia: moment of inertia about the centre, ``I > 0``. ``None`` means
+            ``mass * ell**2`` (two point masses ``M/2`` at the ends);
+            ``float('inf')`` is the static-lens limit (the stick never turns:
+            ``omega`` must then be 0). Ignored for ``ell = 0``.
+
+    Parameters may be arrays of one common shape ``(B,)`` (scalars broadcast) to
+    make a batch of scenes for ``jax.vmap(..., in_axes=(0, ...))``.
+
+    The leaves ``R, ell, mass, inertia`` are differentiable. ``kind`` is static
+    and chooses the compiled code: ``"lens"`` (infinite inertia) and
+    ``"circle"`` (``ell = 0``) have closed-form collision times (quadratics);
+    ``"rotor"`` (finite inertia) uses the safe-step root finder.
+    """
+
+    R: jax.Array
+    ell: jax.Array
+    mass: jax.Array
+    inertia: jax.Array
+    kind: str = eqx.field(static=True)
+
+    def __init__(self, R, ell, mass=1.0, inertia=None, *, kind: str | None = None):
+        leaves = [R, ell, mass] + ([] if inertia is None else [inertia])
+        concrete = all(_is_concrete(v) for v in leaves)
+        if concrete:
+            R_, ell_, mass_ = (np.asarray(v, dtype=np.float64) for v in (R, ell, mass))
+            for name, v in (("R", R_), ("ell", ell_), ("mass", mass_)):
+                _check_parameter(name, v, np.isfinite(v), "finite")
+            _check_parameter("R", R_, R_ > 0, "> 0")
+            _check_parameter("ell", ell_, ell_ >= 0, ">= 0")
+            _check_parameter("ell", ell_, ell_ < R_, "< R (the stick must fit inside the circle)")
+            _check_parameter("mass", mass_, mass_ > 0, "> 0")
+            circle = np.all(ell_ == 0)
+            if not circle and np.any(ell_ == 0):
+                raise ValueError("ell must be all zero or all positive within one batch of scenes")
+            if inertia is None:
+                inertia_ = mass_ * ell_**2
+            else:
+                inertia_ = np.asarray(inertia, dtype=np.float64)
+                _check_parameter("inertia", inertia_, ~np.isnan(inertia_), "a number or inf, not NaN")
+                if not circle:
+                    _check_parameter("inertia", inertia_, inertia_ > 0, "> 0 (or inf for the static lens)")
+            lens = (not circle) and bool(np.all(np.isinf(inertia_)))
+            if not circle and not lens and np.any(np.isinf(inertia_)):
+                raise ValueError("inertia must be all finite or all inf within one batch of scenes")
+            guessed = "circle" if circle else ("lens" if lens else "rotor")
+            R_, ell_, mass_, inertia_ = np.broadcast_arrays(R_, ell_, mass_, inertia_)
+            self.R, self.ell, self.mass, self.inertia = (
+                jnp.asarray(v, dtype=jnp.float64) for v in (R_, ell_, mass_, inertia_)
+            )
+        else:
+            # Traced parameters (a scene built inside jit): values cannot be
+            # checked here; invalid ones poison the results with NaN instead.
+            if inertia is None:
+                inertia = mass * ell**2
+            lens_literal = isinstance(inertia, float) and math.isinf(inertia)
+            guessed = "lens" if lens_literal else "rotor"
+            self.R, self.ell, self.mass, self.inertia = (
+                jnp.asarray(v, dtype=jnp.float64) for v in (R, ell, mass, inertia)
+            )
+        if kind is not None and kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
+        self.kind = guessed if kind is None else kind
+
+    # -- derived quantities --------------------------------------------------
+
+    @property
+    def inverse_inertia(self) -> jax.Array:
+        """``1/I``; zero where the spin is never kicked (lens, circle)."""
+        if self.kind == "rotor":
+            return 1.0 / self.inertia
+        return jnp.zeros_like(self.inertia)
+
+    # -- geometry and flight -------------------------------------------------
+
+    def end_points(self, state: jax.Array) -> jax.Array:
+        """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
+        c = state[..., 0:2]
+        u = jnp.stack([jnp.cos(state[..., 2]), jnp.sin(state[..., 2])], axis=-1)
+        offset = self.ell[..., None] * u
+        return jnp.stack([c + offset, c - offset], axis=-2)
+
+    def gaps(self, state: jax.Array) -> jax.Array:
+        """Contact gaps ``R^2 - |P_k|^2`` of both ends, shape ``(..., 2)``; >= 0 inside."""
+        ends = self.end_points(state)
+        return self.R[..., None] ** 2 - jnp.sum(ends * ends, axis=-1)
+
+    def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
+        """Free flight for time ``t``; ``alpha`` is wrapped into ``[-pi, pi)``.
+
+        Wrapping keeps ``cos``/``sin`` of ``alpha`` exact to rounding however
+        long the run: an unwrapped angle of ``1e7`` radians would carry ``1e-9``
+        absolute error into every contact.
+        """
+        x, y, alpha, vx, vy, omega = (state[..., i] for i in range(6))
+        alpha = alpha + omega * t
+        alpha = jnp.remainder(alpha + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        return jnp.stack([x + vx * t, y + vy * t, alpha, vx, vy, omega], axis=-1)
+
+    def approach_speeds(self, state: jax.Array) -> jax.Array:
+        """Normal velocity of each end towards the wall, ``v . n + omega s_k``, shape ``(..., 2)``."""
+        ends = self.end_points(state)
+        v = state[..., 3:5]
+        omega = state[..., 5]
+        alpha = state[..., 2]
+        u_perp = jnp.stack([-jnp.sin(alpha), jnp.cos(alpha)], axis=-1)
+        end_velocity = jnp.stack(
+            [v + (self.ell * omega)[..., None] * u_perp, v - (self.ell * omega)[..., None] * u_perp],
+            axis=-2,
+        )
+        return jnp.sum(ends * end_velocity, axis=-1) / jnp.linalg.norm(ends, axis=-1)
+
+    # -- the impulse law ------------------------------------------------------
+
+    def kick(self, state: jax.Array, end: jax.Array) -> jax.Array:
+        """Elastic frictionless impulse at end ``end`` (+1 or -1) touching the wall.
+
+        ``n = P/|P|``, ``s = end ell (u x n)``, ``v_n = v . n + omega s``,
+        ``J = 2 v_n / (1/M + s^2/I)``, ``v' = v - (J/M) n``,
+        ``omega' = omega - (J/I) s``. Energy and the angular momentum about the
+        origin are conserved exactly (the impulse is radial).
+        """
+        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
+        ux, uy = jnp.cos(alpha), jnp.sin(alpha)
+        arm = end * self.ell
+        px, py = x + arm * ux, y + arm * uy
+        radius = jnp.hypot(px, py)
+        nx, ny = px / radius, py / radius
+        s = arm * (ux * ny - uy * nx)
+        v_n = vx * nx + vy * ny + omega * s
+        inv_mass = 1.0 / self.mass
+        inv_inertia = self.inverse_inertia
+        impulse = 2.0 * v_n / (inv_mass + s * s * inv_inertia)
+        return jnp.stack(
+            [
+                x,
+                y,
+                alpha,
+                vx - impulse * inv_mass * nx,
+                vy - impulse * inv_mass * ny,
+                omega - impulse * inv_inertia * s,
+            ]
+        )
+
+    # -- collision times --------------------------------------------------------
+
+    def next_contact(self, state: jax.Array):
+        """Time to the next contact and which end makes it.
+
+        Returns ``(t, index, ok)``: ``t`` is ``inf`` when no end ever reaches
+        the wall; ``index`` 0 is P1 and 1 is P2 (for the circle, 0); ``ok`` is
+        False if the root finder hit its step bound.
+        """
+        if self.kind == "rotor":
+            t, index, ok = _rotor_contact_time(self, state)
+            return t, index, ok
+        c = state[0:2]
+        v = state[3:5]
+        if self.kind == "circle":
+            return _exit_time(c, v, self.R), jnp.array(0), jnp.array(True)
+        times = jnp.stack([_exit_time(ends, v, self.R) for ends in self.end_points(state)])
+        index = jnp.argmin(times)
+        return times[index], index, jnp.array(True)
+
+    def _rotor_gaps(self, state: jax.Array, t: jax.Array):
+        """Both ends' gaps and their time derivatives after a flight of ``t``."""
+        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
+        cx, cy = x + vx * t, y + vy * t
+        phi = alpha + omega * t
+        cu, su = jnp.cos(phi), jnp.sin(phi)
+        centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
+        centre_slope = -2.0 * (cx * vx + cy * vy)
+        along = cx * cu + cy * su
+        along_slope = vx * cu + vy * su + omega * (cy * cu - cx * su)
+        ends = jnp.asarray(_ENDS)
+        gap = centre_gap - 2.0 * self.ell * ends * along
+        slope = centre_slope - 2.0 * self.ell * ends * along_slope
+        return gap, slope
+
+    # -- invariants ---------------------------------------------------------------
+
+    def energy(self, state: jax.Array) -> jax.Array:
+        """``M |v|^2 / 2 + I omega^2 / 2`` (the lens drops the spin term: omega = 0)."""
+        v2 = state[..., 3] ** 2 + state[..., 4] ** 2
+        e = 0.5 * self.mass * v2
+        if self.kind == "lens":
+            return e
+        return e + 0.5 * self.inertia * state[..., 5] ** 2
+
+    def angular_momentum(self, state: jax.Array) -> jax.Array:
+        """Total angular momentum about the origin, ``M (x vy - y vx) + I omega``.
+
+        Conserved: the wall force is radial. For the static lens (``I = inf``)
+        only the orbital part is returned, and it is *not* conserved: the
+        infinitely heavy stick absorbs the torque.
+        """
+        x, y, vx, vy = state[..., 0], state[..., 1], state[..., 3], state[..., 4]
+        orbital = self.mass * (x * vy - y * vx)
+        if self.kind == "lens":
+            return orbital
+        return orbital + self.inertia * state[..., 5]
+
+
+def _exit_time(p: jax.Array, v: jax.Array, radius: jax.Array) -> jax.Array:
+    """First ``t >= 0`` with ``|p + v t| = radius`` while moving outwards.
+
+    ``p`` is inside (or on, to rounding) the disc. A point on the rim moving
+    inwards gets the far root, never ``t = 0``; one on or outside the rim moving
+    outwards gets 0. Never-moving points get ``inf``.
+    """
+    speed2 = v @ v
+    b = p @ v
+    gap = radius * radius - p @ p
+    root = jnp.sqrt(jnp.maximum(b * b + speed2 * gap, 0.0))
+    # Cancellation-free forms of the larger root of speed2 t^2 + 2 b t - gap = 0.
+    inward = (root - b) / speed2
+    outward = gap / (b + root)
+    t = jnp.where(b <= 0.0, inward, outward)
+    t = jnp.where(speed2 > 0.0, jnp.maximum(t, 0.0), jnp.inf)
+    return t
+
+
+def _disc_crossing(p: jax.Array, v: jax.Array, radius: jax.Array):
+    """Interval ``(t_in, t_out)`` of ``t >= 0`` with ``|p + v t| < radius`` (empty if none)."""
+    speed2 = v @ v
+    b = p @ v
+    excess = p @ p - radius * radius
+    disc = b * b - speed2 * excess
+    root = jnp.sqrt(jnp.maximum(disc, 0.0))
+    # Roots of speed2 t^2 + 2 b t + excess = 0 without cancellation.
+    q = -(b + jnp.copysign(root, b))
+    t1, t2 = q / speed2, excess / q
+    t_in, t_out = jnp.minimum(t1, t2), jnp.maximum(t1, t2)
+    crosses = (speed2 > 0.0) & (disc > 0.0) & (t_out > 0.0)
+    inside_for_ever = (speed2 == 0.0) & (excess < 0.0)
+    t_in = jnp.where(crosses, jnp.maximum(t_in, 0.0), jnp.where(inside_for_ever, 0.0, jnp.inf))
+    t_out = jnp.where(crosses, t_out, jnp.where(inside_for_ever, jnp.inf, jnp.inf))
+    return t_in, t_out
+
+
+def _rotor_search(scene: StickInCircle, state: jax.Array):
+    c, v, omega = state[0:2], state[3:5], state[5]
+    speed = jnp.linalg.norm(v)
+    spin = jnp.abs(omega)
+    # No end can touch while the centre is within R - ell of the origin (the
+    # quiet interval); before the first contact the centre stays within
+    # sqrt(R^2 - ell^2).
+    centre_radius = jnp.linalg.norm(c)
+    quiet = _disc_crossing(c, v, scene.R - scene.ell)
+    reach = jnp.maximum(jnp.sqrt(scene.R**2 - scene.ell**2), centre_radius)
+    # g_k'' = -2|v|^2 - 2 k ell W'' with |W''| <= 2 |omega| |v| + omega^2 |c(t)|.
+    wobble = 2.0 * scene.ell * (2.0 * spin * speed + spin * spin * reach)
+    lower_curv = 2.0 * speed * speed + wobble
+    upper_curv = wobble - 2.0 * speed * speed
+    # Resolve the root finely enough for both the position (|v| dt << R) and
+    # the angle (|omega| dt << 1 rad, whatever ell is).
+    time_scale = 1.0 / (speed / scene.R + spin)
+    return first_root(
+        lambda t: scene._rotor_gaps(state, t),
+        lower_curv,
+        upper_curv,
+        quiet,
+        time_scale,
+        MAX_ROOT_STEPS,
+    )
+
+
+@jax.custom_jvp
+def _rotor_contact_time(scene: StickInCircle, state: jax.Array):
+    t, index, _, ok = _rotor_search(scene, state)
+    return t, index, ok
+
+
+@_rotor_contact_time.defjvp
+def _rotor_contact_time_jvp(primals, tangents):
+    # Implicit differentiation of g_k(t*; scene, state) = 0: the derivative of
+    # the root comes from the gap at the root, never from the search iterations.
+    scene, state = primals
+    t, index, ok = _rotor_contact_time(scene, state)
+    finite = jnp.isfinite(t)
+    t_safe = jnp.where(finite, t, 0.0)
+
+    def gap_at_root(scene_, state_):
+        gap, _ = scene_._rotor_gaps(state_, t_safe)
+        return gap[index]
+
+    _, gap_tangent = jax.jvp(gap_at_root, primals, tangents)
+    _, slope = scene._rotor_gaps(state, t_safe)
+    slope = slope[index]
+    t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
+    zero = np.zeros((), dtype=jax.dtypes.float0)
+    return (t, index, ok), (t_tangent, zero, zero)
+
+
+def energy(scene: StickInCircle, state: jax.Array) -> jax.Array:
+    """Kinetic energy ``M |v|^2/2 + I omega^2/2`` of ``state`` (shape ``(..., 6)``)."""
+    return scene.energy(jnp.asarray(state))
+
+
+def angular_momentum(scene: StickInCircle, state: jax.Array) -> jax.Array:
+    """Total angular momentum about the origin (orbital plus spin); see ``StickInCircle``."""
+    return scene.angular_momentum(jnp.asarray(state))
+
+
+def end_points(scene: StickInCircle, state: jax.Array) -> jax.Array:
+    """Positions of the ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
+    return scene.end_points(jnp.asarray(state))

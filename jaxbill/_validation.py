@@ -1,0 +1,63 @@
+"""Eager checks at the API boundary: bad input raises ValueError naming what is wrong."""
+
+from __future__ import annotations
+
+import operator
+
+import jax
+import numpy as np
+
+from ._stick_in_circle import WALL_TOLERANCE
+
+
+def is_concrete(x) -> bool:
+    return not isinstance(x, jax.core.Tracer)
+
+
+def check_orbit_length(n) -> int:
+    try:
+        n = operator.index(n)
+    except TypeError:
+        raise ValueError(f"n must be a non-negative integer (number of collisions); got {n!r}") from None
+    if n < 0:
+        raise ValueError(f"n must be a non-negative integer (number of collisions); got {n}")
+    return n
+
+
+def check_state(scene, state) -> None:
+    """Raise ValueError unless ``state`` (shape ``(6,)`` or ``(B, 6)``) is a valid start."""
+    s = np.asarray(state)
+    if s.ndim not in (1, 2) or s.shape[-1] != 6:
+        raise ValueError(
+            f"state must have shape (6,) or (B, 6) = [x, y, alpha, vx, vy, omega]; got shape {s.shape}"
+        )
+    if not np.issubdtype(s.dtype, np.number) or np.iscomplexobj(s):
+        raise ValueError(f"state must be real numbers; got dtype {s.dtype}")
+    s = s.astype(np.float64)
+    if not np.all(np.isfinite(s)):
+        raise ValueError("state must be finite: it contains NaN or inf")
+    R = np.asarray(scene.R, dtype=np.float64)
+    ell = np.asarray(scene.ell, dtype=np.float64)
+    if R.ndim and s.ndim == 2 and R.shape[0] != s.shape[0]:
+        raise ValueError(f"a batch of {R.shape[0]} scenes needs a batch of {R.shape[0]} states; got {s.shape[0]}")
+    x, y, alpha, vx, vy, omega = (s[..., i] for i in range(6))
+    if scene.kind == "lens" and np.any(omega != 0):
+        raise ValueError("omega must be 0 for the static lens (inertia = inf): an infinitely heavy stick cannot spin")
+    ux, uy = np.cos(alpha), np.sin(alpha)
+    for end, name in ((1.0, "P1"), (-1.0, "P2")):
+        px, py = x + end * ell * ux, y + end * ell * uy
+        gap = R**2 - (px * px + py * py)
+        outside = gap < -WALL_TOLERANCE * R**2
+        if np.any(outside):
+            raise ValueError(
+                f"state puts end {name} outside the circle (|{name}| must be <= R); "
+                f"first offending state: {np.atleast_2d(s)[np.argmax(np.atleast_1d(outside))].tolist()}"
+            )
+        on_wall = gap <= WALL_TOLERANCE * R**2
+        wx, wy = vx - end * ell * omega * uy, vy + end * ell * omega * ux
+        outwards = px * wx + py * wy >= 0
+        if np.any(on_wall & outwards):
+            raise ValueError(
+                f"state puts end {name} on the circle without moving inwards: an end may touch the "
+                "wall only as just after a collision (moving inwards); move it inside (|P| < R)"
+            )
