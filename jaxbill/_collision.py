@@ -139,13 +139,19 @@ def collide(scene: StickInCircle, state: jax.Array):
     result: ``new_state`` and ``dt`` are NaN and the contact is 0. This covers
     non-finite states, an end outside the wall by more than ``1e-12 R^2`` in
     the gap, invalid traced parameters, nonzero spin for the static lens, and
-    a root search that hit its step bound. Outside ``jit`` use ``orbit``, which
-    checks eagerly and raises ``ValueError``.
+    a root search that hit its step bound. Called with concrete values
+    (outside ``jit``), bad input raises ``ValueError`` instead.
     """
-    return _collide_jit(scene, state)
+    _check_eagerly(scene, state)
+    return _collide_jit(scene, jnp.asarray(state, dtype=jnp.float64))
 
 
 _collide_jit = eqx.filter_jit(_collide)
+
+
+def _check_eagerly(scene, state) -> None:
+    if is_concrete(state) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
+        check_state(scene, state)
 
 
 def _orbit_scan(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:
@@ -189,6 +195,5 @@ def orbit(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:
             result is poisoned with NaN instead (see ``collide``).
     """
     n = check_orbit_length(n)
-    if is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
-        check_state(scene, state0)
+    _check_eagerly(scene, state0)
     return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n)

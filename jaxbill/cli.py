@@ -1,0 +1,60 @@
+"""The ``jaxbill`` console command."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+DEFAULT_DEMO_STATE = (0.05, 0.02, 0.4, 0.8, 0.5, 0.6)
+
+
+def _demo(args: argparse.Namespace) -> int:
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import jaxbill as jb
+
+    scene = jb.StickInCircle(R=args.R, ell=args.ell)
+    state0 = jnp.asarray(DEFAULT_DEMO_STATE)
+    print(f"jaxbill {jb.__version__} on {jax.devices()[0].platform}: "
+          f"stick in a circle, R = {args.R}, ell = {args.ell}, mass = 1, inertia = mass ell^2")
+    print("state = [x, y, alpha, vx, vy, omega]; contact +1 = end P1 = c + ell u, -1 = end P2\n")
+    start = time.perf_counter()
+    orb = jax.block_until_ready(jb.orbit(scene, state0, args.n))
+    elapsed = time.perf_counter() - start
+    e0, l0 = jb.energy(scene, state0), jb.angular_momentum(scene, state0)
+    print(f"{'k':>4} {'t':>10} {'contact':>7}  state just after the collision")
+    for k in range(min(args.show, args.n)):
+        s = np.asarray(orb.state[k])
+        print(f"{k + 1:>4} {float(orb.t[k]):>10.6f} {int(orb.contact[k]):>7}  " + " ".join(f"{v:+.6f}" for v in s))
+    energies = jb.energy(scene, orb.state)
+    momenta = jb.angular_momentum(scene, orb.state)
+    print(f"\n{args.n} collisions in {elapsed:.2f} s (compilation included)")
+    print(f"energy E = {float(e0):.15f}, worst relative drift {float(jnp.max(jnp.abs(energies / e0 - 1))):.2e}")
+    print(f"angular momentum L = {float(l0):.15f}, worst drift {float(jnp.max(jnp.abs(momenta - l0))):.2e}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="jaxbill", description="Rigid-body billiards in JAX.")
+    commands = parser.add_subparsers(dest="command")
+    demo = commands.add_parser("demo", help="print the first collisions of a default orbit and its invariants")
+    demo.add_argument("--R", type=float, default=2.0, help="circle radius (default 2)")
+    demo.add_argument("--ell", type=float, default=1.9, help="stick half-length (default 1.9, the paper's Fig. 2)")
+    demo.add_argument("-n", type=int, default=10000, help="number of collisions (default 10000)")
+    demo.add_argument("--show", type=int, default=10, help="collisions to print (default 10)")
+    demo.set_defaults(run=_demo)
+    args = parser.parse_args(argv)
+    if args.command is None:
+        args = parser.parse_args(["demo", *(argv or [])])
+    try:
+        return args.run(args)
+    except ValueError as error:
+        print(f"jaxbill: error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
