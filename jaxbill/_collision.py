@@ -53,13 +53,13 @@ def _input_is_valid(scene: StickInCircle, state: jax.Array) -> jax.Array:
     return ok
 
 
-def _resolve_contact(scene: StickInCircle, state: jax.Array, index: jax.Array):
+def _resolve_contact(scene: StickInCircle, state: jax.Array, index: jax.Array, u: jax.Array):
     """Apply the impulse at the touching end; a simultaneous second contact too."""
     if scene.kind == "circle":
-        return scene.kick(state, 0.0), jnp.int32(1)
+        return scene.kick(state, 0.0, u), jnp.int32(1)
     ends = jnp.asarray(_ENDS)
-    gaps = scene.gaps(state)
-    speeds = scene.approach_speeds(state)
+    gaps = scene.gaps(state, u)
+    speeds = scene.approach_speeds(state, u)
     other = 1 - index
     corner = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * scene.R**2) & (
         speeds[other] > 0.0
@@ -68,27 +68,41 @@ def _resolve_contact(scene: StickInCircle, state: jax.Array, index: jax.Array):
     # if it still approaches: a deterministic rule for an ill-posed event.
     first = jnp.where(corner & (speeds[other] > speeds[index]), other, index)
     second = 1 - first
-    state = scene.kick(state, ends[first])
-    still_approaching = scene.approach_speeds(state)[second] > 0.0
-    state = jnp.where(corner & still_approaching, scene.kick(state, ends[second]), state)
+    state = scene.kick(state, ends[first], u)
+    still_approaching = scene.approach_speeds(state, u)[second] > 0.0
+    state = jnp.where(corner & still_approaching, scene.kick(state, ends[second], u), state)
     contact = jnp.where(corner, jnp.int32(CORNER), jnp.int32(ends[index]))
     return state, contact
 
 
-def _collide(scene: StickInCircle, state: jax.Array):
-    state = jnp.asarray(state, dtype=jnp.float64)
-    valid = _input_is_valid(scene, state)
-    t, index, ok = scene.next_contact(state)
+def _advance(scene: StickInCircle, state: jax.Array, lens_direction: jax.Array | None = None):
+    """Flight to the next contact and its impulse, for a state known to be valid.
+
+    ``lens_direction``: the static lens's fixed ``u``, when the caller has it.
+    """
+    u = lens_direction if lens_direction is not None else scene.direction(state)
+    t, index, ok = scene.next_contact(state, u)
     reached = jnp.isfinite(t)
     moved = scene.flight(state, jnp.where(reached, t, 0.0))
-    kicked, contact = _resolve_contact(scene, moved, index)
+    if scene.kind == "rotor":
+        u = scene.direction(moved)
+    kicked, contact = _resolve_contact(scene, moved, index, u)
     new_state = jnp.where(reached, kicked, state)
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
-    poisoned = ~(valid & ok)
-    new_state = jnp.where(poisoned, jnp.nan, new_state)
-    t = jnp.where(poisoned, jnp.nan, t)
-    contact = jnp.where(poisoned, jnp.int32(NO_CONTACT), contact)
+    # A root search that hit its step bound proved nothing: poison the result.
+    new_state = jnp.where(ok, new_state, jnp.nan)
+    t = jnp.where(ok, t, jnp.nan)
     return new_state, t, contact
+
+
+def _poison_if(bad, *arrays):
+    return tuple(jnp.where(bad, jnp.nan, a) if jnp.issubdtype(a.dtype, jnp.floating) else jnp.where(bad, 0, a)
+                 for a in arrays)
+
+
+def _collide(scene: StickInCircle, state: jax.Array):
+    state = jnp.asarray(state, dtype=jnp.float64)
+    return _poison_if(~_input_is_valid(scene, state), *_advance(scene, state))
 
 
 def collide(scene: StickInCircle, state: jax.Array):
@@ -155,22 +169,42 @@ def _check_eagerly(scene, state) -> None:
 
 
 def _orbit_scan(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:
+    lens_direction = scene.direction(state0) if scene.kind == "lens" else None
+
     def step(carry, _):
         state, t = carry
-        new_state, dt, contact = _collide(scene, state)
+        new_state, dt, contact = _advance(scene, state, lens_direction)
         t = t + dt
         return (new_state, t), (t, contact, new_state)
 
     state0 = jnp.asarray(state0, dtype=jnp.float64)
     _, (t, contact, states) = jax.lax.scan(step, (state0, jnp.zeros((), jnp.float64)), length=n)
+    # Later states come from the map itself; only the start needs checking.
+    t, contact, states = _poison_if(~_input_is_valid(scene, state0), t, contact, states)
     return Orbit(t=t, contact=contact, state=states)
+
+
+# Orbits of a batch run in chunks of this many lanes, one chunk after another:
+# a vmapped root search waits for its slowest lane, so smaller chunks wait less,
+# and a chunk's working set stays in cache (see benchmarks/bench_collisions.py).
+_CHUNK = {"rotor": 64, "lens": 256, "circle": 256}
+
+
+def _orbit_batch(scene: StickInCircle, states0: jax.Array, n: int) -> Orbit:
+    batch = states0.shape[0]
+    chunk = max(1, min(batch, _CHUNK[scene.kind]))
+    pad = (-batch) % chunk
+    padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, 6))])
+    run_chunk = jax.vmap(_orbit_scan, in_axes=(None, 0, None))
+    out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, 6))
+    return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
 
 
 @eqx.filter_jit
 def _orbit_jit(scene, state0, n):
     if state0.ndim == 1:
         return _orbit_scan(scene, state0, n)
-    return jax.vmap(_orbit_scan, in_axes=(None, 0, None))(scene, state0, n)
+    return _orbit_batch(scene, state0, n)
 
 
 def orbit(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:

@@ -122,7 +122,10 @@ def first_root(
         touching_now = jnp.any(touching)
         index = jnp.where(touching_now, jnp.argmax(touching), index)
         t_next = jnp.where(touching_now, t, t_next)
-        done = touching_now | converged | jnp.isinf(t_next)
+        # Non-finite input (a poisoned lane) ends at once rather than making a
+        # whole vmapped batch wait out the step bound.
+        hopeless = ~jnp.isfinite(t_next) | ~jnp.all(jnp.isfinite(gap) & jnp.isfinite(slope))
+        done = touching_now | converged | hopeless
         return t_next, index, done, steps + 1
 
     def keep_going(carry):

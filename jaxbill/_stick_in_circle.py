@@ -126,16 +126,28 @@ class StickInCircle(eqx.Module):
 
     # -- geometry and flight -------------------------------------------------
 
-    def end_points(self, state: jax.Array) -> jax.Array:
+    def direction(self, state: jax.Array) -> jax.Array:
+        """The stick's unit vector ``u = (cos alpha, sin alpha)``, shape ``(..., 2)``.
+
+        Every geometric method takes it as an optional argument ``u``: the
+        static lens never turns, so an orbit computes it once rather than at
+        every collision (float64 sin/cos dominate the lens's cost), and the
+        circle (``ell = 0``) never needs it.
+        """
+        if self.kind == "circle":
+            return jnp.stack([jnp.ones_like(state[..., 2]), jnp.zeros_like(state[..., 2])], axis=-1)
+        return jnp.stack([jnp.cos(state[..., 2]), jnp.sin(state[..., 2])], axis=-1)
+
+    def end_points(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
         c = state[..., 0:2]
-        u = jnp.stack([jnp.cos(state[..., 2]), jnp.sin(state[..., 2])], axis=-1)
+        u = self.direction(state) if u is None else u
         offset = self.ell[..., None] * u
         return jnp.stack([c + offset, c - offset], axis=-2)
 
-    def gaps(self, state: jax.Array) -> jax.Array:
+    def gaps(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Contact gaps ``R^2 - |P_k|^2`` of both ends, shape ``(..., 2)``; >= 0 inside."""
-        ends = self.end_points(state)
+        ends = self.end_points(state, u)
         return self.R[..., None] ** 2 - jnp.sum(ends * ends, axis=-1)
 
     def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
@@ -146,17 +158,18 @@ class StickInCircle(eqx.Module):
         absolute error into every contact.
         """
         x, y, alpha, vx, vy, omega = (state[..., i] for i in range(6))
-        alpha = alpha + omega * t
-        alpha = jnp.remainder(alpha + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        if self.kind != "lens":  # the lens never turns (omega = 0)
+            alpha = alpha + omega * t
+            alpha = jnp.remainder(alpha + jnp.pi, 2.0 * jnp.pi) - jnp.pi
         return jnp.stack([x + vx * t, y + vy * t, alpha, vx, vy, omega], axis=-1)
 
-    def approach_speeds(self, state: jax.Array) -> jax.Array:
+    def approach_speeds(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Normal velocity of each end towards the wall, ``v . n + omega s_k``, shape ``(..., 2)``."""
-        ends = self.end_points(state)
+        u = self.direction(state) if u is None else u
+        ends = self.end_points(state, u)
         v = state[..., 3:5]
         omega = state[..., 5]
-        alpha = state[..., 2]
-        u_perp = jnp.stack([-jnp.sin(alpha), jnp.cos(alpha)], axis=-1)
+        u_perp = jnp.stack([-u[..., 1], u[..., 0]], axis=-1)
         end_velocity = jnp.stack(
             [v + (self.ell * omega)[..., None] * u_perp, v - (self.ell * omega)[..., None] * u_perp],
             axis=-2,
@@ -165,7 +178,7 @@ class StickInCircle(eqx.Module):
 
     # -- the impulse law ------------------------------------------------------
 
-    def kick(self, state: jax.Array, end: jax.Array) -> jax.Array:
+    def kick(self, state: jax.Array, end: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Elastic frictionless impulse at end ``end`` (+1 or -1) touching the wall.
 
         ``n = P/|P|``, ``s = end ell (u x n)``, ``v_n = v . n + omega s``,
@@ -174,7 +187,7 @@ class StickInCircle(eqx.Module):
         origin are conserved exactly (the impulse is radial).
         """
         x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
-        ux, uy = jnp.cos(alpha), jnp.sin(alpha)
+        ux, uy = self.direction(state) if u is None else u
         arm = end * self.ell
         px, py = x + arm * ux, y + arm * uy
         radius = jnp.hypot(px, py)
@@ -197,7 +210,7 @@ class StickInCircle(eqx.Module):
 
     # -- collision times --------------------------------------------------------
 
-    def next_contact(self, state: jax.Array):
+    def next_contact(self, state: jax.Array, u: jax.Array | None = None):
         """Time to the next contact and which end makes it.
 
         Returns ``(t, index, ok)``: ``t`` is ``inf`` when no end ever reaches
@@ -211,7 +224,7 @@ class StickInCircle(eqx.Module):
         v = state[3:5]
         if self.kind == "circle":
             return _exit_time(c, v, self.R), jnp.array(0), jnp.array(True)
-        times = jnp.stack([_exit_time(ends, v, self.R) for ends in self.end_points(state)])
+        times = jnp.stack([_exit_time(ends, v, self.R) for ends in self.end_points(state, u)])
         index = jnp.argmin(times)
         return times[index], index, jnp.array(True)
 
