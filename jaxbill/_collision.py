@@ -119,8 +119,8 @@ def collide(scene: StickInCircle, state: jax.Array):
         flight time ``dt`` to the collision, and the contact: ``+1`` end P1,
         ``-1`` end P2, ``2`` both ends at once, ``0`` none. A flight that never
         reaches the wall (e.g. ``v = 0`` with ``|c| + ell < R``) returns
-        ``dt = inf``, contact 0 and the state unchanged. ``alpha`` is returned
-        wrapped into ``[-pi, pi)``.
+        ``dt = inf``, contact 0 and the state unchanged. After a collision
+        ``alpha`` is wrapped into ``[-pi, pi)``.
 
     The collision time. For the static lens (``inertia = inf``, ``omega = 0``)
     each end moves on a straight line and its contact time is the larger root
@@ -164,8 +164,10 @@ _collide_jit = eqx.filter_jit(_collide)
 
 
 def _check_eagerly(scene, state) -> None:
-    if is_concrete(state) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
-        check_state(scene, state)
+    if all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
+        scene.check()
+        if is_concrete(state):
+            check_state(scene, state)
 
 
 def _orbit_scan(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:

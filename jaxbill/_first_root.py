@@ -55,7 +55,10 @@ def _safe_steps(g, slope, lower_curv, upper_curv):
     # Two algebraically equal forms of the quadratic's positive root; each is
     # free of cancellation on its side of slope = 0.
     falling = 2.0 * g / (root_lo - slope)
-    rising = (slope + root_lo) / lower_curv
+    # An explicit reciprocal: XLA turns division by a broadcast scalar into a
+    # reciprocal multiply in some programs (one orbit) but not others (a
+    # batch), which would make batched and single runs differ in the last bit.
+    rising = (slope + root_lo) * (1.0 / lower_curv)
     s_lo = jnp.where(slope < 0.0, falling, rising)
     # 0/0 arises only for slope == 0 with no curvature (a motionless gap, which
     # never vanishes) or with g == 0 (an end resting on the wall with no normal
