@@ -1,0 +1,93 @@
+"""The ``jaxbill`` console command (run as a subprocess, as a user would)."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbill as jb
+from jaxbill.cli import DEFAULT_DEMO_STATE
+
+FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def _run(*args):
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    return subprocess.run(
+        [sys.executable, "-m", "jaxbill.cli", *args], capture_output=True, text=True, env=env, timeout=300
+    )
+
+
+@pytest.fixture(scope="module")
+def demo():
+    proc = _run("demo", "-n", "200", "--show", "3")
+    assert proc.returncode == 0, f"exit {proc.returncode}\nstdout:\n{proc.stdout[-2000:]}\nstderr:\n{proc.stderr[-3000:]}"
+    return proc.stdout
+
+
+def _rows(out):
+    rows = []
+    for line in out.splitlines():
+        fields = line.split()
+        if len(fields) == 9 and fields[0].isdigit():
+            rows.append((int(fields[0]), float(fields[1]), int(fields[2]), np.array([float(f) for f in fields[3:]])))
+    return rows
+
+
+def test_demo_prints_the_requested_collisions(demo):
+    rows = _rows(demo)
+    assert [r[0] for r in rows] == [1, 2, 3]
+    assert all(r[2] in (1, -1, 2) for r in rows)
+    times = [r[1] for r in rows]
+    assert 0 < times[0] < times[1] < times[2]
+    assert re.search(r"^200 collisions in " + FLOAT + r" s", demo, re.M)
+
+
+def test_demo_collisions_match_collide(demo):
+    """The printed rows are the collisions jb.collide gives from the default state
+    (default scene R = 2, ell = 1.9); the printout has 6 decimals."""
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    state = jnp.asarray(DEFAULT_DEMO_STATE, dtype=jnp.float64)
+    t = 0.0
+    for k, t_printed, contact_printed, state_printed in _rows(demo):
+        state, dt, contact = jb.collide(scene, state)
+        t += float(dt)
+        assert abs(t_printed - t) <= 5.1e-7, f"collision {k}: printed t = {t_printed}, collide gives {t}"
+        assert contact_printed == int(contact)
+        np.testing.assert_allclose(state_printed, np.asarray(state), rtol=0, atol=5.1e-7)
+
+
+def test_demo_prints_the_invariants_and_their_drift(demo):
+    x, y, _, vx, vy, w = DEFAULT_DEMO_STATE
+    ell = 1.9
+    E = 0.5 * (vx**2 + vy**2) + 0.5 * ell**2 * w**2  # M = 1, I = M ell^2
+    L = (x * vy - y * vx) + ell**2 * w
+    m = re.search(r"energy E = (" + FLOAT + r"), worst relative drift (" + FLOAT + r")", demo)
+    assert m, demo
+    assert abs(float(m.group(1)) - E) <= 1e-14 * E
+    assert 0.0 <= float(m.group(2)) < 1e-12
+    m = re.search(r"angular momentum L = (" + FLOAT + r"), worst drift (" + FLOAT + r")", demo)
+    assert m, demo
+    assert abs(float(m.group(1)) - L) <= 1e-14 * abs(L)
+    assert 0.0 <= float(m.group(2)) < 1e-12 * abs(L)
+
+
+@pytest.mark.parametrize("ell", ["2.5", "2.0", "-0.5", "nan"])
+def test_demo_bad_ell_exits_2_naming_ell(ell):
+    proc = _run("demo", "-n", "5", f"--ell={ell}")
+    assert proc.returncode == 2
+    assert re.search(r"\bell\b", proc.stderr), proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not _rows(proc.stdout)
+
+
+def test_demo_non_numeric_ell_is_a_usage_error():
+    proc = _run("demo", "--ell", "long")
+    assert proc.returncode == 2
+    assert "--ell" in proc.stderr
