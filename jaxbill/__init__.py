@@ -9,6 +9,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from ._checker import check, CheckFlag, CheckReport, CheckResult  # noqa: E402
 from ._collision import collide, orbit, Orbit  # noqa: E402
 from ._stick_in_circle import StickInCircle, energy, angular_momentum, end_points  # noqa: E402
 
@@ -20,5 +21,9 @@ __all__ = [
     "energy",
     "angular_momentum",
     "end_points",
+    "check",
+    "CheckResult",
+    "CheckReport",
+    "CheckFlag",
 ]
 __version__ = "0.1.0"
