@@ -11,6 +11,17 @@ jax.config.update("jax_enable_x64", True)
 
 from ._checker import check, CheckFlag, CheckReport, CheckResult  # noqa: E402
 from ._collision import collide, orbit, Orbit  # noqa: E402
+from ._section_measures import count_islands, covered_fraction, curve_thickness, is_chaotic, twin_divergence  # noqa: E402
+from ._sections import (  # noqa: E402
+    birkhoff_section,
+    incoming_states,
+    paper_section,
+    reduced_section,
+    reduced_section_bounds,
+    section_seeds,
+    section_state,
+    wall_length,
+)
 from ._stick_in_circle import StickInCircle, energy, angular_momentum, end_points  # noqa: E402
 
 __all__ = [
@@ -21,6 +32,19 @@ __all__ = [
     "energy",
     "angular_momentum",
     "end_points",
+    "paper_section",
+    "reduced_section",
+    "birkhoff_section",
+    "reduced_section_bounds",
+    "section_state",
+    "section_seeds",
+    "incoming_states",
+    "wall_length",
+    "curve_thickness",
+    "covered_fraction",
+    "count_islands",
+    "twin_divergence",
+    "is_chaotic",
     "check",
     "CheckResult",
     "CheckReport",

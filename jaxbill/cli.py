@@ -37,6 +37,16 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _figures(args: argparse.Namespace) -> int:
+    from ._figures import make_figures
+
+    summary = make_figures(args.out, quick=args.quick, progress=not args.no_progress)
+    print(f"wrote {len(summary['figures'])} figures, summary.json and summary.txt to {args.out} "
+          f"in {summary['total_seconds']:.1f} s ({summary['total_collisions']} collisions; worst relative "
+          f"energy drift {summary['worst_energy_drift']:.1e})")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="jaxbill", description="Rigid-body billiards in JAX.")
     commands = parser.add_subparsers(dest="command")
@@ -46,6 +56,14 @@ def main(argv: list[str] | None = None) -> int:
     demo.add_argument("-n", type=int, default=10000, help="number of collisions (default 10000)")
     demo.add_argument("--show", type=int, default=10, help="collisions to print (default 10)")
     demo.set_defaults(run=_demo)
+    figures = commands.add_parser(
+        "figures",
+        help="reproduce the paper's figures, its parameter scans and the reduced section (PNGs and a summary)",
+    )
+    figures.add_argument("--out", default="figures", help="folder to write into (default ./figures)")
+    figures.add_argument("--quick", action="store_true", help="a small, fast version (for tests)")
+    figures.add_argument("--no-progress", action="store_true", help="no progress bar")
+    figures.set_defaults(run=_figures)
     args = parser.parse_args(argv)
     if args.command is None:
         args = parser.parse_args(["demo", *(argv or [])])

@@ -1,0 +1,303 @@
+"""Pictures of the stick in a circle, with matplotlib.
+
+Every ``draw_*`` function draws on a given ``Axes`` (a 3D one for
+``draw_spiral_column``) and returns it; every ``*_figure`` function returns a
+new ``matplotlib.figure.Figure`` (created without ``pyplot``, so it works with
+any backend and needs no display; save it with ``fig.savefig``).
+
+Lengths are in the units of the scene's ``R``; ``M`` is the stick's mass; time
+is in the units of the states' velocities.
+
+* ``draw_trajectory``: the configuration-space picture (the paper's Fig. 1):
+  the circle, the path of the stick's centre, the stick at its contacts and
+  the paper's rotating lens-shaped wall at one chosen contact.
+* ``draw_section``: section points of many orbits, coloured by orbit, with
+  axes labelled for the chosen section (``"paper"``, ``"reduced"`` or
+  ``"birkhoff"``; see ``jaxbill._sections``).
+* ``draw_reduced_bounds``: the edge of the reachable region of the reduced
+  section at given ``E`` and ``L``, and the lens corners.
+* ``draw_spiral_column``: the spiral-column picture in 3D, the column surface
+  ``r <= b(theta - alpha)`` swept along ``z = sqrt(I/M) alpha`` and the
+  trajectory inside it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ._sections import half_corner_angle, reduced_section_bounds, wall_length
+
+_SECTION_LABELS = {
+    "paper": (r"$\phi_c = \arctan(p_y/p_x)$  (units of $\pi$)", r"$L_z = y\,p_x - x\,p_y$  (mass length$^2$/time)"),
+    "reduced": (r"$s$: arc length along the rotating lens wall (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+    "birkhoff": (r"$s$: arc length along the wall (length)", r"$\sin\chi = v_t/|v|$"),
+}
+
+
+def _np(x):
+    return np.asarray(x, dtype=np.float64)
+
+
+def orbit_colors(count: int, cmap: str = "turbo"):
+    """``count`` distinct colours, one per orbit, from a matplotlib colormap."""
+    import matplotlib
+
+    colormap = matplotlib.colormaps[cmap]
+    if count <= 1:
+        return [colormap(0.15)]
+    return [colormap(0.05 + 0.9 * i / (count - 1)) for i in range(count)]
+
+
+def lens_outline(scene, alpha: float, points: int = 400) -> np.ndarray:
+    """The lens-shaped wall ``r = b(theta - alpha)`` that the centre sees at stick angle ``alpha``.
+
+    ``b(q) = -ell |cos q| + sqrt(R^2 - ell^2 sin^2 q)``: the intersection of the
+    discs of radius ``R`` about ``-ell u`` and ``+ell u``. Returns ``(points, 2)``.
+    """
+    R, ell = float(scene.R), float(scene.ell)
+    theta = np.linspace(0.0, 2.0 * np.pi, points)
+    q = theta - alpha
+    r = -ell * np.abs(np.cos(q)) + np.sqrt(R**2 - (ell * np.sin(q)) ** 2)
+    return np.stack([r * np.cos(theta), r * np.sin(theta)], axis=-1)
+
+
+def draw_trajectory(
+    ax,
+    scene,
+    state0,
+    orbit,
+    *,
+    collisions: int | None = None,
+    wall_at: int | None = 0,
+    stick_every: int = 1,
+    path_color: str = "tab:blue",
+    stick_color: str = "0.55",
+    wall_color: str = "tab:red",
+):
+    """The configuration-space trajectory of one orbit (the paper's Fig. 1).
+
+    Args:
+        ax: a 2D ``Axes``.
+        scene: the ``StickInCircle``.
+        state0: the orbit's initial state ``(6,)``.
+        orbit: ``jb.orbit(scene, state0, n)`` (one orbit, not a batch).
+        collisions: how many collisions to draw (default all).
+        wall_at: index of the contact at which to draw the rotating lens wall
+            (the region ``r <= b(theta - alpha)`` where the centre may be at that
+            stick angle) with the centre on it; ``None`` for none.
+        stick_every: draw the stick at every ``stick_every``-th contact.
+
+    Draws the circle (black), the centre's straight flights (``path_color``),
+    the stick at contacts (``stick_color``, the touching end dotted) and the
+    wall (``wall_color``, dashed, with the stick at that contact in bold).
+    """
+    R, ell = float(scene.R), float(scene.ell)
+    states = _np(orbit.state)
+    if states.ndim != 2:
+        raise ValueError("draw_trajectory draws one orbit: orbit.state must have shape (n, 6)")
+    n = len(states) if collisions is None else min(collisions, len(states))
+    states = states[:n]
+    start = _np(state0)
+    circle = np.linspace(0.0, 2.0 * np.pi, 400)
+    ax.plot(R * np.cos(circle), R * np.sin(circle), color="k", lw=1.5)
+    path = np.concatenate([start[None, :2], states[:, :2]])
+    ax.plot(path[:, 0], path[:, 1], color=path_color, lw=0.9, label="path of the centre")
+    ax.plot(*start[:2], "o", color=path_color, ms=4)
+    ends = _end_points(scene, states)
+    touching = np.argmin(np.abs(R**2 - np.sum(ends**2, axis=-1)), axis=-1)
+    for j in range(0, n, max(1, stick_every)):
+        ax.plot(ends[j, :, 0], ends[j, :, 1], color=stick_color, lw=0.7, alpha=0.7)
+        ax.plot(*ends[j, touching[j]], ".", color=stick_color, ms=4)
+    if wall_at is not None and n:
+        j = wall_at % n
+        lens = lens_outline(scene, float(states[j, 2]))
+        ax.plot(lens[:, 0], lens[:, 1], "--", color=wall_color, lw=1.2,
+                label=f"rotating wall at contact {j + 1}")
+        ax.plot(ends[j, :, 0], ends[j, :, 1], color=wall_color, lw=2.5)
+        ax.plot(*states[j, :2], "o", color=wall_color, ms=5)
+    ax.set_aspect("equal")
+    ax.set_xlim(-1.08 * R, 1.08 * R)
+    ax.set_ylim(-1.08 * R, 1.08 * R)
+    ax.set_xlabel("x (length)")
+    ax.set_ylabel("y (length)")
+    ax.set_title(f"R = {R:g}, ell = {ell:g}: {n} collisions")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize="small", frameon=False)
+    return ax
+
+
+def _end_points(scene, states):
+    ell = float(scene.ell)
+    u = np.stack([np.cos(states[..., 2]), np.sin(states[..., 2])], axis=-1)
+    c = states[..., :2]
+    return np.stack([c + ell * u, c - ell * u], axis=-2)
+
+
+def draw_section(
+    ax,
+    points,
+    kind: str = "paper",
+    *,
+    colors=None,
+    markersize: float = 0.6,
+    labels=None,
+    title: str | None = None,
+    rasterized: bool = True,
+):
+    """Section points of one or many orbits, coloured by orbit.
+
+    Args:
+        ax: a 2D ``Axes``.
+        points: ``(n, 2)`` for one orbit or ``(B, n, 2)`` for ``B`` orbits, as
+            returned by ``paper_section`` (``[L_z, phi_c]``, drawn with
+            ``phi_c`` across and ``L_z`` up, the paper's axes),
+            ``reduced_section`` or ``birkhoff_section`` (``[s, p]``, drawn
+            with ``s`` across). Non-finite points are skipped.
+        kind: ``"paper"``, ``"reduced"`` or ``"birkhoff"``: chooses the axes
+            and their labels.
+        colors: one colour per orbit (default ``orbit_colors(B)``), or one colour.
+        labels: optional legend label per orbit.
+    """
+    if kind not in _SECTION_LABELS:
+        raise ValueError(f"kind must be one of {tuple(_SECTION_LABELS)}; got {kind!r}")
+    pts = _np(points)
+    if pts.ndim == 2:
+        pts = pts[None]
+    if pts.ndim != 3 or pts.shape[-1] != 2:
+        raise ValueError(f"points must have shape (n, 2) or (B, n, 2); got {np.shape(points)}")
+    if colors is None:
+        colors = orbit_colors(len(pts))
+    elif isinstance(colors, str) or (np.ndim(colors) == 1 and len(colors) in (3, 4) and not isinstance(colors[0], str)):
+        colors = [colors] * len(pts)
+    for i, orbit_points in enumerate(pts):
+        if kind == "paper":
+            x, y = orbit_points[:, 1], orbit_points[:, 0]
+        else:
+            x, y = orbit_points[:, 0], orbit_points[:, 1]
+        ok = np.isfinite(x) & np.isfinite(y)
+        ax.plot(x[ok], y[ok], linestyle="none", marker=".", markersize=markersize, markeredgewidth=0,
+                color=colors[i % len(colors)], rasterized=rasterized,
+                label=None if labels is None else labels[i])
+    xlabel, ylabel = _SECTION_LABELS[kind]
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if kind == "paper":
+        ax.set_xlim(-0.5, 0.5)
+    if title is not None:
+        ax.set_title(title)
+    if labels is not None:
+        ax.legend(loc="upper right", fontsize="small", markerscale=12, framealpha=0.8)
+    return ax
+
+
+def draw_reduced_bounds(ax, scene, energy: float = 0.5, angular_momentum: float = 0.0, *, color="k"):
+    """Outline of the reduced section at ``(E, L)``: the edge ``p_min(s), p_max(s)`` and the corners.
+
+    Sets the ``s`` limits to one turn of the wall. For the lens and the circle
+    the edge is ``p = -1, 1``.
+    """
+    length = float(wall_length(scene))
+    s = np.linspace(0.0, length, 800)
+    bounds = _np(reduced_section_bounds(scene, s, energy, angular_momentum))
+    ax.plot(s, bounds[:, 0], color=color, lw=0.8)
+    ax.plot(s, bounds[:, 1], color=color, lw=0.8)
+    if scene.kind != "circle":
+        corner = 2.0 * float(scene.R) * float(half_corner_angle(scene))
+        ax.axvline(corner, color=color, lw=0.6, ls=":")
+    ax.set_xlim(0.0, length)
+    return ax
+
+
+def unwrapped_angles(state0, orbit) -> np.ndarray:
+    """The stick angle at each collision, without the wrap into ``[-pi, pi)``: ``(n,)``.
+
+    ``alpha_j = alpha_0 + sum_{i <= j} omega_{i-1} (t_i - t_{i-1})`` (the spin is
+    constant in flight), so the total turning is exact, not guessed from wraps.
+    """
+    states = _np(orbit.state)
+    t = _np(orbit.t)
+    start = _np(state0)
+    omegas = np.concatenate([[start[5]], states[:-1, 5]])
+    dts = np.diff(np.concatenate([[0.0], t]))
+    return start[2] + np.cumsum(omegas * dts)
+
+
+def draw_spiral_column(
+    ax3d,
+    scene,
+    state0,
+    orbit,
+    *,
+    collisions: int | None = None,
+    surface_alpha: float = 0.12,
+    path_color: str = "tab:blue",
+):
+    """The spiral-column picture: the point ``(x, y, z = sqrt(I/M) alpha)`` in straight flight inside the column.
+
+    The column is ``r <= b(theta - alpha)`` swept along ``z``; its two creases
+    (the lens corners, ``theta - alpha = +-pi/2``) are drawn as helices. The
+    trajectory reflects specularly off the column surface.
+
+    Args:
+        ax3d: an ``Axes`` with ``projection="3d"``.
+        scene: a ``StickInCircle`` with finite inertia (a rotor).
+        state0, orbit: one orbit and its initial state.
+        collisions: how many collisions to draw (default all).
+    """
+    if scene.kind != "rotor":
+        raise ValueError("the spiral column needs a finite inertia and ell > 0 (the stick must turn)")
+    states = _np(orbit.state)
+    n = len(states) if collisions is None else min(collisions, len(states))
+    pitch = float(np.sqrt(scene.inertia / scene.mass))
+    alphas = np.concatenate([[float(_np(state0)[2])], unwrapped_angles(state0, orbit)[:n]])
+    path = np.concatenate([_np(state0)[None, :2], states[:n, :2]])
+    z = pitch * alphas
+    R, ell = float(scene.R), float(scene.ell)
+    q = np.linspace(0.0, 2.0 * np.pi, 90)
+    a = np.linspace(alphas.min(), alphas.max(), 40)
+    qq, aa = np.meshgrid(q, a)
+    r = -ell * np.abs(np.cos(qq)) + np.sqrt(R**2 - (ell * np.sin(qq)) ** 2)
+    theta = qq + aa
+    ax3d.plot_surface(r * np.cos(theta), r * np.sin(theta), pitch * aa, color="tab:gray",
+                      alpha=surface_alpha, linewidth=0, antialiased=False, shade=True)
+    crease = np.sqrt(R**2 - ell**2)
+    a_fine = np.linspace(alphas.min(), alphas.max(), 600)
+    for side in (0.5 * np.pi, -0.5 * np.pi):
+        ax3d.plot(crease * np.cos(a_fine + side), crease * np.sin(a_fine + side), pitch * a_fine,
+                  color="k", lw=0.8)
+    ax3d.plot(path[:, 0], path[:, 1], z, color=path_color, lw=1.0)
+    ax3d.scatter(path[1:, 0], path[1:, 1], z[1:], color=path_color, s=4)
+    ax3d.set_xlabel("x (length)")
+    ax3d.set_ylabel("y (length)")
+    ax3d.set_zlabel(r"$z = \sqrt{I/M}\,\alpha$ (length)")
+    height = max(float(z.max() - z.min()), 1e-9)
+    ax3d.set_box_aspect((1.0, 1.0, min(3.0, max(0.5, height / (2.0 * R)))))
+    ax3d.set_title(f"spiral column: R = {R:g}, ell = {ell:g}, {n} collisions")
+    return ax3d
+
+
+# -- whole figures -----------------------------------------------------------
+
+
+def trajectory_figure(scene, state0, orbit, **kwargs) -> Figure:
+    """A ``Figure`` with ``draw_trajectory`` (the paper's Fig. 1)."""
+    fig = Figure(figsize=(6, 6.6), layout="constrained")
+    draw_trajectory(fig.add_subplot(), scene, state0, orbit, **kwargs)
+    return fig
+
+
+def section_figure(points, kind: str = "paper", *, scene=None, energy=0.5, angular_momentum=0.0, **kwargs) -> Figure:
+    """A ``Figure`` with ``draw_section``; with ``scene`` and a reduced/Birkhoff kind, its bounds too."""
+    fig = Figure(figsize=(7, 5.5), layout="constrained")
+    ax = fig.add_subplot()
+    draw_section(ax, points, kind, **kwargs)
+    if scene is not None and kind != "paper":
+        draw_reduced_bounds(ax, scene, energy, angular_momentum)
+    return fig
+
+
+def spiral_column_figure(scene, state0, orbit, **kwargs) -> Figure:
+    """A ``Figure`` with ``draw_spiral_column``."""
+    fig = Figure(figsize=(7, 7), layout="constrained")
+    draw_spiral_column(fig.add_subplot(projection="3d"), scene, state0, orbit, **kwargs)
+    return fig

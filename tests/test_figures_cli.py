@@ -1,0 +1,143 @@
+"""``jaxbill figures --quick``: every promised file is written, and the summary's numbers are true.
+
+The summary's numbers are recomputed here directly: each panel's orbits are
+run again with ``jb.orbit`` from the start states the summary records (in the
+same batch as the figure ran them: beside twins whose velocity is turned by
+1e-11 rad, where the summary says so), and the collision counts and the worst
+energy and angular-momentum drift are computed from the definitions (not with
+``jaxbill._figures``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+
+import jaxbill as jb
+from jaxbill import cli
+from jaxbill._figures import FILES
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("figures")
+    assert cli.main(["figures", "--quick", "--no-progress", "--out", str(out)]) == 0
+    with open(out / "summary.json") as handle:
+        return out, json.load(handle)
+
+
+def test_every_promised_file_is_written(quick_run):
+    out, summary = quick_run
+    for name in FILES:
+        path = out / name
+        assert path.is_file(), name
+        assert path.stat().st_size > 1000, name
+        if name.endswith(".png"):
+            assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    written = {figure["file"] for figure in summary["figures"]}
+    assert written == {name for name in FILES if name.endswith(".png")}
+    text = (out / "summary.txt").read_text()
+    for name in written:
+        assert name in text
+    assert summary["quick"] is True
+
+
+def _scene(record):
+    inertia = record["inertia"]
+    inertia = math.inf if inertia == "inf" else inertia
+    return jb.StickInCircle(R=record["R"], ell=record["ell"], mass=record["mass"], inertia=inertia)
+
+
+def _panels(summary):
+    return [(figure["file"], panel) for figure in summary["figures"] for panel in figure["panels"]]
+
+
+def test_summary_parameters_match_the_paper(quick_run):
+    _, summary = quick_run
+    by_file = {}
+    for name, panel in _panels(summary):
+        by_file.setdefault(name, []).append(panel)
+    fig1, = by_file["fig1_trajectory.png"]
+    assert (fig1["scene"]["R"], fig1["scene"]["ell"]) == (2.0, 1.0)
+    fig2, = by_file["fig2_projected_section.png"]
+    assert (fig2["scene"]["R"], fig2["scene"]["ell"], fig2["orbits"]) == (2.0, 1.9, 2)
+    assert fig2["orbit_kinds"] == ["regular", "chaotic"]
+    fig3, = by_file["fig3_lens_section.png"]
+    assert (fig3["scene"]["ell"], fig3["scene"]["inertia"], fig3["scene"]["kind"]) == (1.5, "inf", "lens")
+    assert [p["scene"]["ell"] for p in by_file["ell_scan.png"]] == [1.9, 1.5, 1.1, 0.5, 0.1]
+    inertias = [p["scene"]["inertia"] / p["scene"]["ell"] ** 2 for p in by_file["inertia_scan.png"]]
+    np.testing.assert_allclose(inertias, [1.0, 1 / 100, 1 / 200], rtol=1e-12)
+
+
+def test_summary_numbers_match_a_direct_computation(quick_run):
+    _, summary = quick_run
+    worst_energy, worst_momentum, total = 0.0, 0.0, 0
+    for name, panel in _panels(summary):
+        scene = _scene(panel["scene"])
+        states0 = np.asarray(panel["states0"])
+        n = panel["collisions_per_orbit"]
+        if panel["twins"]:
+            # the figure ran each orbit beside a twin with its velocity turned by 1e-11 rad, in one batch
+            delta = 1e-11
+            twins = states0.copy()
+            twins[:, 3] = math.cos(delta) * states0[:, 3] - math.sin(delta) * states0[:, 4]
+            twins[:, 4] = math.sin(delta) * states0[:, 3] + math.cos(delta) * states0[:, 4]
+            orb = jb.orbit(scene, np.concatenate([states0, twins]), n)
+            orb = jax.tree_util.tree_map(lambda a: a[: len(states0)], orb)
+        else:
+            orb = jb.orbit(scene, states0 if len(states0) > 1 else states0[0], n)
+        states = np.asarray(orb.state).reshape(len(states0), n, 6)
+        assert panel["orbits"] == len(states0)
+        assert panel["collisions"] == len(states0) * n
+        assert np.all(np.isfinite(states))
+        assert panel["missed_or_failed"] == int(np.sum(np.asarray(orb.contact) == 0)) == 0
+        # energy M |v|^2 / 2 + I omega^2 / 2 (no spin term for the lens)
+        spin = 0.0 if scene.kind == "lens" else float(scene.inertia)
+        e = 0.5 * float(scene.mass) * (states[..., 3] ** 2 + states[..., 4] ** 2) + 0.5 * spin * states[..., 5] ** 2
+        e0 = 0.5 * float(scene.mass) * (states0[:, 3] ** 2 + states0[:, 4] ** 2) + 0.5 * spin * states0[:, 5] ** 2
+        energy_drift = np.max(np.abs(e / e0[:, None] - 1))
+        assert panel["energy_drift"] == pytest.approx(energy_drift, rel=1e-9, abs=1e-16)
+        assert energy_drift < 1e-11
+        worst_energy = max(worst_energy, energy_drift)
+        if scene.kind == "lens":
+            assert panel["angular_momentum_drift"] is None
+        else:
+            def momentum(s):
+                return float(scene.mass) * (s[..., 0] * s[..., 4] - s[..., 1] * s[..., 3]) + spin * s[..., 5]
+            scale = float(scene.R) * np.sqrt(2 * float(scene.mass) * e0)
+            drift = np.max(np.abs(momentum(states) - momentum(states0)[:, None]) / scale[:, None])
+            assert panel["angular_momentum_drift"] == pytest.approx(drift, rel=1e-9, abs=1e-16)
+            assert drift < 1e-12
+            worst_momentum = max(worst_momentum, drift)
+        if name not in ("spiral_column.png", "fig2_reduced_vs_projected.png"):
+            total += panel["collisions"]
+    assert summary["worst_energy_drift"] == pytest.approx(worst_energy, rel=1e-12)
+    assert summary["worst_angular_momentum_drift"] == pytest.approx(worst_momentum, rel=1e-12)
+    assert summary["total_collisions"] == total
+
+
+def test_section_orbits_hold_one_energy_and_momentum(quick_run):
+    _, summary = quick_run
+    for name, panel in _panels(summary):
+        if name in ("fig1_trajectory.png", "spiral_column.png"):
+            continue
+        assert panel["energy"] == pytest.approx(0.5, abs=1e-12)
+        if panel["scene"]["kind"] != "lens":
+            assert panel["angular_momentum"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_demo_still_works(capsys):
+    assert cli.main(["demo", "-n", "20", "--show", "2"]) == 0
+    assert "angular momentum" in capsys.readouterr().out
+
+
+def test_console_command_offers_figures():
+    result = subprocess.run([sys.executable, "-m", "jaxbill.cli", "figures", "--help"],
+                            capture_output=True, text=True, check=True)
+    assert "--out" in result.stdout and "--quick" in result.stdout
