@@ -9,8 +9,23 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from ._chaos import (  # noqa: E402
+    FiniteTimeLyapunov,
+    chaos_threshold,
+    chaotic_fraction,
+    finite_time_lyapunov,
+    sample_energy_shell,
+)
 from ._checker import check, CheckFlag, CheckReport, CheckResult  # noqa: E402
 from ._collision import collide, orbit, Orbit  # noqa: E402
+from ._lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
+from ._periodic import (  # noqa: E402
+    STABILITY_LABELS,
+    PeriodicOrbit,
+    continue_periodic_orbit,
+    find_periodic_orbit,
+    find_periodic_orbits,
+)
 from ._section_measures import count_islands, covered_fraction, curve_thickness, is_chaotic, twin_divergence  # noqa: E402
 from ._sections import (  # noqa: E402
     birkhoff_section,
@@ -22,6 +37,7 @@ from ._sections import (  # noqa: E402
     section_state,
     wall_length,
 )
+from ._tangent import dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from ._stick_in_circle import StickInCircle, energy, angular_momentum, end_points  # noqa: E402
 
 __all__ = [
@@ -45,6 +61,21 @@ __all__ = [
     "count_islands",
     "twin_divergence",
     "is_chaotic",
+    "tangent_map",
+    "dynamical_indices",
+    "phase_velocity",
+    "lyapunov_spectrum",
+    "LyapunovSpectrum",
+    "sample_energy_shell",
+    "finite_time_lyapunov",
+    "FiniteTimeLyapunov",
+    "chaotic_fraction",
+    "chaos_threshold",
+    "find_periodic_orbit",
+    "find_periodic_orbits",
+    "continue_periodic_orbit",
+    "PeriodicOrbit",
+    "STABILITY_LABELS",
     "check",
     "CheckResult",
     "CheckReport",

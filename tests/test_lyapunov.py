@@ -1,0 +1,132 @@
+"""Lyapunov spectra by Benettin's repeated QR (jaxbill._lyapunov).
+
+Tolerance on exponents that should vanish or cancel: ``tol(n) = 2 log(n) / T(n)``
+per unit time (``T(n)`` the time of ``n`` collisions), the size of the
+finite-time estimate of a zero exponent for a tangent vector growing
+polynomially; it shrinks as ``n`` grows, and it is applied at every checkpoint of
+the convergence history.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbill as jb
+from jaxbill._lyapunov import lyapunov_spectrum
+
+N = 20000
+# Chaotic orbits (checked: lambda_1 > 0.1 per unit time).
+ROTOR = (dict(R=2.0, ell=1.0), [0.1, -0.2, 0.3, 0.6, 0.5, 0.7])
+LENS = (dict(R=2.0, ell=1.5, inertia=float("inf")), [0.434, -0.323, -1.554, 0.991, -0.131, 0.0])
+CIRCLE = (dict(R=2.0, ell=0.0), [0.1, -0.2, 0.3, 0.6, 0.5, 0.7])
+
+
+def _tol(n, t):
+    return 2.0 * np.log(n) / t
+
+
+@pytest.fixture(scope="module")
+def spectra():
+    out = {}
+    for name, (params, s0) in {"rotor": ROTOR, "lens": LENS, "circle": CIRCLE}.items():
+        scene = jb.StickInCircle(**params)
+        out[name] = (
+            scene,
+            lyapunov_spectrum(scene, jnp.asarray(s0), N, n_history=10),
+            lyapunov_spectrum(scene, jnp.asarray(s0), N, per="collision", n_history=10),
+        )
+    return out
+
+
+@pytest.mark.parametrize("name,size,zeros", [("rotor", 6, 4), ("lens", 4, 2)])
+def test_chaotic_spectrum_pairs_and_has_expected_zeros(spectra, name, size, zeros):
+    _, sp, _ = spectra[name]
+    assert sp.exponents.shape == (size,)
+    assert sp.history.shape == (10, size)
+    for n, t, est in zip(np.asarray(sp.collisions), np.asarray(sp.times), np.asarray(sp.history)):
+        tol = _tol(n, t)
+        pairing = est + est[::-1]
+        assert np.max(np.abs(pairing)) <= tol, (n, pairing, tol)
+        middle = est[1:-1]
+        assert middle.size == zeros and np.max(np.abs(middle)) <= tol, (n, middle, tol)
+    lam = np.asarray(sp.exponents)
+    assert lam[0] > 0.1 and lam[-1] < -0.1
+    # The pairing error shrinks as n grows (last checkpoint against the first).
+    first, last = np.asarray(sp.history[0]), np.asarray(sp.history[-1])
+    assert np.max(np.abs(last + last[::-1])) < np.max(np.abs(first + first[::-1]))
+
+
+def test_circle_spectrum_is_zero_like_log_n_over_n(spectra):
+    _, sp, sc = spectra["circle"]
+    hist = np.abs(np.asarray(sp.history))
+    times = np.asarray(sp.times)
+    bounds = _tol(np.asarray(sp.collisions), times)
+    assert np.all(np.max(hist, axis=1) <= bounds)
+    # Decay: ten times more collisions, at least five times smaller.
+    assert np.max(hist[-1]) < np.max(hist[0]) / 5
+    assert np.max(np.abs(np.asarray(sc.exponents))) <= 2 * np.log(N) / N
+
+
+@pytest.mark.parametrize("name", ["rotor", "lens"])
+def test_per_time_and_per_collision_agree_through_mean_collision_rate(spectra, name):
+    _, per_time, per_coll = spectra[name]
+    mean_flight = float(per_time.time) / N
+    assert per_coll.exponents.shape[0] == per_time.exponents.shape[0] - 1
+    lam_time = np.asarray(per_time.exponents)
+    lam_coll = np.asarray(per_coll.exponents)
+    np.testing.assert_allclose(lam_coll[0], lam_time[0] * mean_flight, rtol=1e-3)
+    np.testing.assert_allclose(lam_coll[-1], lam_time[-1] * mean_flight, rtol=1e-3)
+    # The section map's spectrum pairs as well.
+    assert np.max(np.abs(lam_coll + lam_coll[::-1])) <= 2 * np.log(N) / N
+
+
+def test_batch_and_vmap_agree_with_single_runs():
+    """Short runs: batched and scalar programs may differ by an ulp (FMA
+    contraction on CPU), which chaos amplifies by about exp(0.75 per collision)."""
+    scene = jb.StickInCircle(R=2.0, ell=1.0)
+    states = jnp.asarray([ROTOR[1], [0.2, 0.1, -1.0, -0.3, 0.8, -0.4], [-0.3, 0.2, 2.0, 0.5, 0.5, 0.1]])
+    n = 20
+    batch = lyapunov_spectrum(scene, states, n, n_history=4)
+    vmapped = jax.jit(jax.vmap(lambda s: lyapunov_spectrum(scene, s, n, n_history=4).exponents))(states)
+    assert batch.exponents.shape == (3, 6) and batch.history.shape == (3, 4, 6)
+    for k in range(3):
+        single = lyapunov_spectrum(scene, states[k], n, n_history=4)
+        np.testing.assert_allclose(batch.exponents[k], single.exponents, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(vmapped[k], single.exponents, rtol=1e-6, atol=1e-9)
+
+
+def test_qr_every_k_gives_the_same_exponents():
+    scene = jb.StickInCircle(**ROTOR[0])
+    a = lyapunov_spectrum(scene, jnp.asarray(ROTOR[1]), 1000)
+    b = lyapunov_spectrum(scene, jnp.asarray(ROTOR[1]), 1000, qr_every=5)
+    np.testing.assert_allclose(a.exponents, b.exponents, rtol=1e-8, atol=1e-10)
+
+
+def test_memory_does_not_grow_with_n():
+    from jaxbill._lyapunov import _initial_vectors, _spectrum
+
+    scene = jb.StickInCircle(**ROTOR[0])
+    frame = _initial_vectors(6, 6)
+    sizes = []
+    run = jax.jit(_spectrum, static_argnums=(2, 3, 4, 5))
+    for n in (1000, 100000):
+        compiled = run.lower(scene, jnp.asarray(ROTOR[1]), n, "time", 1, 10, frame).compile()
+        analysis = compiled.memory_analysis()
+        if analysis is None:
+            pytest.skip("no memory analysis on this backend")
+        sizes.append(analysis.temp_size_in_bytes + analysis.output_size_in_bytes)
+    assert sizes[0] == sizes[1]
+
+
+def test_bad_arguments():
+    scene = jb.StickInCircle(R=2.0, ell=1.0)
+    s = jnp.asarray(ROTOR[1])
+    with pytest.raises(ValueError, match="per"):
+        lyapunov_spectrum(scene, s, 10, per="orbit")
+    with pytest.raises(ValueError, match="multiple"):
+        lyapunov_spectrum(scene, s, 10, qr_every=3)
+    with pytest.raises(ValueError, match="outside"):
+        lyapunov_spectrum(scene, jnp.asarray([1.9, 0, 0, 1, 0, 0]), 10)
