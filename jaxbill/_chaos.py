@@ -10,7 +10,6 @@ fraction whose exponent exceeds a threshold, an estimate of the fraction of the
 
 from __future__ import annotations
 
-import operator
 
 import equinox as eqx
 import jax
@@ -20,6 +19,7 @@ import numpy as np
 from ._collision import _check_eagerly
 from ._stick_in_circle import StickInCircle
 from ._tangent import dynamical_indices, push_forward
+from ._validation import check_count
 
 
 class FiniteTimeLyapunov(eqx.Module):
@@ -74,12 +74,7 @@ def finite_time_lyapunov(scene: StickInCircle, states: jax.Array, n: int) -> Fin
         states: shape ``(B, 6)`` (or ``(6,)``, treated as a batch of one).
         n: number of collisions (Python int, static).
     """
-    try:
-        n = operator.index(n)
-    except TypeError:
-        raise ValueError(f"n must be a positive integer; got {n!r}") from None
-    if n < 1:
-        raise ValueError(f"n must be a positive integer; got {n}")
+    n = check_count("n", n, 1, "number of collisions")
     states = jnp.atleast_2d(jnp.asarray(states, jnp.float64))
     _check_eagerly(scene, states)
     k = len(dynamical_indices(scene))

@@ -70,7 +70,6 @@ derivative is ``-J^+ dF/dscene``, never a derivative of the iterations.
 from __future__ import annotations
 
 import math
-import operator
 
 import equinox as eqx
 import jax
@@ -80,6 +79,7 @@ import optimistix as optx
 
 from ._collision import _check_eagerly, _collide
 from ._stick_in_circle import StickInCircle
+from ._validation import check_count
 
 ELLIPTIC, PARABOLIC, HYPERBOLIC, INVERSE_HYPERBOLIC = 0, 1, 2, 3
 STABILITY_LABELS = ("elliptic", "parabolic", "hyperbolic", "inverse hyperbolic")
@@ -367,13 +367,7 @@ def _periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, 
 
 
 def _check_period(period) -> int:
-    try:
-        p = operator.index(period)
-    except TypeError:
-        raise ValueError(f"period must be a positive integer (collisions); got {period!r}") from None
-    if p < 1:
-        raise ValueError(f"period must be a positive integer (collisions); got {p}")
-    return p
+    return check_count("period", period, 1, "collisions")
 
 
 def _targets(scene, guess, energy, angular_momentum, rotation):

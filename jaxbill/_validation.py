@@ -14,14 +14,20 @@ def is_concrete(x) -> bool:
     return not isinstance(x, jax.core.Tracer)
 
 
-def check_orbit_length(n) -> int:
+def check_count(name: str, value, minimum: int, meaning: str) -> int:
+    """``value`` as a Python int ``>= minimum``, or ValueError naming ``name``."""
+    kind = "non-negative" if minimum == 0 else "positive" if minimum == 1 else f">= {minimum}"
     try:
-        n = operator.index(n)
+        count = operator.index(value)
     except TypeError:
-        raise ValueError(f"n must be a non-negative integer (number of collisions); got {n!r}") from None
-    if n < 0:
-        raise ValueError(f"n must be a non-negative integer (number of collisions); got {n}")
-    return n
+        raise ValueError(f"{name} must be a {kind} integer ({meaning}); got {value!r}") from None
+    if count < minimum:
+        raise ValueError(f"{name} must be a {kind} integer ({meaning}); got {count}")
+    return count
+
+
+def check_orbit_length(n) -> int:
+    return check_count("n", n, 0, "number of collisions")
 
 
 def check_state(scene, state) -> None:
