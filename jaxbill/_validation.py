@@ -43,26 +43,24 @@ def check_state(scene, state) -> None:
     if not np.all(np.isfinite(s)):
         raise ValueError("state must be finite: it contains NaN or inf")
     R = np.asarray(scene.R, dtype=np.float64)
-    ell = np.asarray(scene.ell, dtype=np.float64)
     if R.ndim and s.ndim == 2 and R.shape[0] != s.shape[0]:
         raise ValueError(f"a batch of {R.shape[0]} scenes needs a batch of {R.shape[0]} states; got {s.shape[0]}")
-    x, y, alpha, vx, vy, omega = (s[..., i] for i in range(6))
-    if scene.kind == "lens" and np.any(omega != 0):
+    if scene.kind == "lens" and np.any(s[..., 5] != 0):
         raise ValueError("omega must be 0 for the static lens (inertia = inf): an infinitely heavy stick cannot spin")
-    ux, uy = np.cos(alpha), np.sin(alpha)
-    for end, name in ((1.0, "P1"), (-1.0, "P2")):
-        px, py = x + end * ell * ux, y + end * ell * uy
-        gap = R**2 - (px * px + py * py)
-        outside = gap < -WALL_TOLERANCE * R**2
+    # The scene's own geometry, evaluated eagerly: the same gaps and normal
+    # velocities the collision map uses.
+    gaps = np.asarray(scene.gaps(s))
+    speeds = np.asarray(scene.approach_speeds(s))
+    wall = WALL_TOLERANCE * R[..., None] ** 2
+    for index, name in enumerate(("P1", "P2")):
+        outside = gaps[..., index] < -wall[..., 0]
         if np.any(outside):
             raise ValueError(
                 f"state puts end {name} outside the circle (|{name}| must be <= R); "
                 f"first offending state: {np.atleast_2d(s)[np.argmax(np.atleast_1d(outside))].tolist()}"
             )
-        on_wall = gap <= WALL_TOLERANCE * R**2
-        wx, wy = vx - end * ell * omega * uy, vy + end * ell * omega * ux
-        outwards = px * wx + py * wy >= 0
-        if np.any(on_wall & outwards):
+        on_wall = gaps[..., index] <= wall[..., 0]
+        if np.any(on_wall & (speeds[..., index] >= 0)):
             raise ValueError(
                 f"state puts end {name} on the circle without moving inwards: an end may touch the "
                 "wall only as just after a collision (moving inwards); move it inside (|P| < R)"
