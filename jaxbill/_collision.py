@@ -80,12 +80,19 @@ def _advance(scene: StickInCircle, state: jax.Array, lens_direction: jax.Array |
 
     ``lens_direction``: the static lens's fixed ``u``, when the caller has it.
     """
-    u = lens_direction if lens_direction is not None else scene.direction(state)
-    t, index, ok = scene.next_contact(state, u)
-    reached = jnp.isfinite(t)
-    moved = scene.flight(state, jnp.where(reached, t, 0.0))
     if scene.kind == "rotor":
+        # The root search evaluates the turning stick itself; u is needed only
+        # at the contact.
+        t, index, ok = scene.next_contact(state)
+        reached = jnp.isfinite(t)
+        moved = scene.flight(state, jnp.where(reached, t, 0.0))
         u = scene.direction(moved)
+    else:
+        # The lens never turns and the circle ignores u: one u serves throughout.
+        u = lens_direction if lens_direction is not None else scene.direction(state)
+        t, index, ok = scene.next_contact(state, u)
+        reached = jnp.isfinite(t)
+        moved = scene.flight(state, jnp.where(reached, t, 0.0))
     kicked, contact = _resolve_contact(scene, moved, index, u)
     new_state = jnp.where(reached, kicked, state)
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
