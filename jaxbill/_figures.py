@@ -287,6 +287,10 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         fig.savefig(path, dpi=settings.dpi)
         return name
 
+    def add_figure(name: str, fig: Figure, png: str, description: str, panels: list, t0: float) -> None:
+        figures.append({"name": name, "file": save(fig, png), "description": description,
+                        "panels": panels, "seconds": time.perf_counter() - t0})
+
     # Fig. 1 and the spiral column: one orbit at ell = 1.
     t0 = time.perf_counter()
     scene1 = StickInCircle(R=R, ell=1.0)
@@ -294,18 +298,16 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     orbit1 = run_orbit(scene1, state1, settings.fig1_collisions)
     fig = plotting.trajectory_figure(scene1, state1, orbit1, wall_at=5)
     fig.suptitle("Fig. 1: a trajectory of the stick's centre, R = 2, ell = 1")
-    figures.append({"name": "fig1", "file": save(fig, "fig1_trajectory.png"),
-                    "description": "configuration space: centre's path, stick at contacts, rotating wall at contact 6",
-                    "panels": [_panel("R = 2, ell = 1", scene1, state1, orbit1)],
-                    "seconds": time.perf_counter() - t0})
+    add_figure("fig1", fig, "fig1_trajectory.png",
+               "configuration space: centre's path, stick at contacts, rotating wall at contact 6",
+               [_panel("R = 2, ell = 1", scene1, state1, orbit1)], t0)
     bar.advance("Fig. 1")
 
     t0 = time.perf_counter()
     fig = plotting.spiral_column_figure(scene1, state1, orbit1, collisions=min(7, settings.fig1_collisions))
-    figures.append({"name": "spiral_column", "file": save(fig, "spiral_column.png"),
-                    "description": "the Fig. 1 orbit as a point moving in straight lines inside the spiral column",
-                    "panels": [_panel("R = 2, ell = 1", scene1, state1, orbit1)],
-                    "seconds": time.perf_counter() - t0})
+    add_figure("spiral_column", fig, "spiral_column.png",
+               "the Fig. 1 orbit as a point moving in straight lines inside the spiral column",
+               [_panel("R = 2, ell = 1", scene1, state1, orbit1)], t0)
     bar.advance("spiral column")
 
     # Fig. 2: one regular and one chaotic orbit at ell = 1.9.
@@ -325,12 +327,11 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     plotting.draw_section(ax, projected2, "paper", colors=colors, labels=labels, markersize=1.2,
                           title=f"Fig. 2: projected section, R = 2, ell = 1.9, "
                                 f"{settings.fig2_collisions} collisions each")
-    figures.append({"name": "fig2", "file": save(fig, "fig2_projected_section.png"),
-                    "description": "the paper's projection (L_z against phi_c) of one regular and one chaotic orbit",
-                    "panels": [_panel("R = 2, ell = 1.9", scene2, states2, orbit2,
-                                      orbit_kinds=labels, reduced_thickness=thick2,
-                                      projected_thickness=thick2_projected, twin_divergence=divergence2.tolist())],
-                    "seconds": time.perf_counter() - t0})
+    add_figure("fig2", fig, "fig2_projected_section.png",
+               "the paper's projection (L_z against phi_c) of one regular and one chaotic orbit",
+               [_panel("R = 2, ell = 1.9", scene2, states2, orbit2,
+                       orbit_kinds=labels, reduced_thickness=thick2,
+                       projected_thickness=thick2_projected, twin_divergence=divergence2.tolist())], t0)
     bar.advance("Fig. 2")
 
     # Fig. 3: the static lens.
@@ -348,12 +349,10 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     plotting.draw_reduced_bounds(ax_birkhoff, scene3)
     fig.suptitle(f"Fig. 3: infinite inertia (static lens), R = 2, ell = 1.5, "
                  f"{settings.lens_orbits} orbits x {settings.lens_collisions} collisions")
-    figures.append({"name": "fig3", "file": save(fig, "fig3_lens_section.png"),
-                    "description": "static lens: the paper's projection (a complete section here) and "
-                                   "Birkhoff coordinates",
-                    "panels": [_panel("R = 2, ell = 1.5, I = inf", scene3, states3, orbit3,
-                                      chaotic_fraction=float(np.mean(chaotic3)))],
-                    "seconds": time.perf_counter() - t0})
+    add_figure("fig3", fig, "fig3_lens_section.png",
+               "static lens: the paper's projection (a complete section here) and Birkhoff coordinates",
+               [_panel("R = 2, ell = 1.5, I = inf", scene3, states3, orbit3,
+                       chaotic_fraction=float(np.mean(chaotic3)))], t0)
     bar.advance("Fig. 3")
 
     # The ell scan.
@@ -368,9 +367,9 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     background = panels[0] if settings.ell_values and settings.ell_values[0] == 1.9 else None
     fig = _scan_figure(panels, f"R = 2, E = 1/2, L = 0: {settings.section_orbits} orbits x "
                                f"{settings.section_collisions} collisions per panel")
-    figures.append({"name": "ell_scan", "file": save(fig, "ell_scan.png"),
-                    "description": "shorter sticks: projected (top) and reduced (bottom) sections",
-                    "panels": records, "seconds": time.perf_counter() - t0})
+    add_figure("ell_scan", fig, "ell_scan.png",
+               "shorter sticks: projected (top) and reduced (bottom) sections",
+               records, t0)
     bar.advance("ell scan")
 
     # The inertia scan.
@@ -388,9 +387,8 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         panels.append((scene, record, reduced, projected, chaotic, f"ell = {ell:g}, I = {name}"))
         records.append(record)
     fig = _scan_figure(panels, f"R = 2, ell = {ell:g}, E = 1/2, L = 0: lighter sticks")
-    figures.append({"name": "inertia_scan", "file": save(fig, "inertia_scan.png"),
-                    "description": "smaller moment of inertia: projected (top) and reduced (bottom) sections",
-                    "panels": records, "seconds": time.perf_counter() - t0})
+    add_figure("inertia_scan", fig, "inertia_scan.png",
+               "smaller moment of inertia: projected (top) and reduced (bottom) sections", records, t0)
     bar.advance("inertia scan")
 
     # The Fig. 2 orbits in the reduced section, beside the projection.
@@ -406,11 +404,9 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
                           title=f"reduced (E = 1/2, L = 0): thickness {thick2[0]:.3f} and {thick2[1]:.2f}")
     plotting.draw_reduced_bounds(ax_reduced, scene2, ENERGY, ANGULAR_MOMENTUM)
     fig.suptitle("Fig. 2's orbits (R = 2, ell = 1.9); grey: other orbits of the same E and L")
-    figures.append({"name": "fig2_reduced", "file": save(fig, "fig2_reduced_vs_projected.png"),
-                    "description": "the Fig. 2 orbits in the reduced section (a curve and an area) "
-                                   "beside the projection",
-                    "panels": [figures[2]["panels"][0]],
-                    "seconds": time.perf_counter() - t0})
+    add_figure("fig2_reduced", fig, "fig2_reduced_vs_projected.png",
+               "the Fig. 2 orbits in the reduced section (a curve and an area) beside the projection",
+               [figures[2]["panels"][0]], t0)
     bar.advance("reduced vs projected")
 
     all_panels = [p for f in figures for p in f["panels"]]
