@@ -6,15 +6,10 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._stick_in_circle import _ENDS, WALL_TOLERANCE, StickInCircle
+from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from ._validation import check_orbit_length, check_state, is_concrete
 
-# A second end within this many ulps of R^2 of the wall at a contact touches it
-# at the same instant (a lens corner): both impulses are applied in one event.
-_CORNER_ULPS = 64.0
-
-CORNER = 2  # contact code: both ends at once
-NO_CONTACT = 0  # contact code: the flight never reaches the wall
+CORNER = SEVERAL_CONTACTS  # the stick in a circle's name for it: both ends at once
 
 
 class Orbit(eqx.Module):
@@ -22,10 +17,12 @@ class Orbit(eqx.Module):
 
     Attributes:
         t: ``(n,)`` absolute time of each collision (time zero is ``state0``).
-        contact: ``(n,)`` int32: ``+1`` end P1, ``-1`` end P2, ``2`` both ends at
-            once (a corner), ``0`` none (the flight never reaches the wall:
-            ``t = inf`` from then on).
-        state: ``(n, 6)`` the state just after each collision.
+        contact: ``(n,)`` int32: which end touched which wall (the codes are
+            the scene's; ``StickInCircle``: ``+1`` end P1, ``-1`` end P2), ``2``
+            several contacts at once (a corner), ``0`` none (the flight never
+            reaches a wall: ``t = inf`` from then on).
+        state: ``(n, S)`` the state just after each collision
+            (``S = scene.state_size``).
     """
 
     t: jax.Array
@@ -33,73 +30,15 @@ class Orbit(eqx.Module):
     state: jax.Array
 
 
-def _input_is_valid(scene: StickInCircle, state: jax.Array) -> jax.Array:
-    """Traceable validity test for NaN poisoning inside jit (see ``collide``)."""
-    params_ok = (
-        (scene.R > 0)
-        & (scene.ell >= 0)
-        & (scene.ell < scene.R)
-        & (scene.mass > 0)
-        & jnp.isfinite(scene.R)
-        & jnp.isfinite(scene.mass)
-    )
-    if scene.kind == "rotor":
-        params_ok &= (scene.inertia > 0) & jnp.isfinite(scene.inertia)
-    state_ok = jnp.all(jnp.isfinite(state))
-    inside = jnp.all(scene.gaps(state) >= -WALL_TOLERANCE * scene.R**2)
-    ok = params_ok & state_ok & inside
-    if scene.kind == "lens":
-        ok &= state[5] == 0.0
-    return ok
+def step_function(scene: Scene, state0: jax.Array):
+    """The collision map of the orbit from ``state0`` as a function of the state alone.
 
-
-def _resolve_contact(scene: StickInCircle, state: jax.Array, index: jax.Array, u: jax.Array):
-    """Apply the impulse at the touching end; a simultaneous second contact too."""
-    if scene.kind == "circle":
-        return scene.kick(state, 0.0, u), jnp.int32(1)
-    ends = jnp.asarray(_ENDS)
-    gaps = scene.gaps(state, u)
-    speeds = scene.approach_speeds(state, u)
-    other = 1 - index
-    corner = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * scene.R**2) & (
-        speeds[other] > 0.0
-    )
-    # At a corner the faster-approaching end is kicked first, the other after it
-    # if it still approaches: a deterministic rule for an ill-posed event.
-    first = jnp.where(corner & (speeds[other] > speeds[index]), other, index)
-    second = 1 - first
-    state = scene.kick(state, ends[first], u)
-    still_approaching = scene.approach_speeds(state, u)[second] > 0.0
-    state = jnp.where(corner & still_approaching, scene.kick(state, ends[second], u), state)
-    contact = jnp.where(corner, jnp.int32(CORNER), jnp.int32(ends[index]))
-    return state, contact
-
-
-def _advance(scene: StickInCircle, state: jax.Array, lens_direction: jax.Array | None = None):
-    """Flight to the next contact and its impulse, for a state known to be valid.
-
-    ``lens_direction``: the static lens's fixed ``u``, when the caller has it.
+    Returns ``state -> (new_state, dt, contact)`` for states known to be valid
+    (check ``scene.is_valid(state0)`` once; later states come from the map).
+    Quantities the scene holds fixed along an orbit are computed here once.
     """
-    if scene.kind == "rotor":
-        # The root search evaluates the turning stick itself; u is needed only
-        # at the contact.
-        t, index, ok = scene.next_contact(state)
-        reached = jnp.isfinite(t)
-        moved = scene.flight(state, jnp.where(reached, t, 0.0))
-        u = scene.direction(moved)
-    else:
-        # The lens never turns and the circle ignores u: one u serves throughout.
-        u = lens_direction if lens_direction is not None else scene.direction(state)
-        t, index, ok = scene.next_contact(state, u)
-        reached = jnp.isfinite(t)
-        moved = scene.flight(state, jnp.where(reached, t, 0.0))
-    kicked, contact = _resolve_contact(scene, moved, index, u)
-    new_state = jnp.where(reached, kicked, state)
-    contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
-    # A root search that hit its step bound proved nothing: poison the result.
-    new_state = jnp.where(ok, new_state, jnp.nan)
-    t = jnp.where(ok, t, jnp.nan)
-    return new_state, t, contact
+    constants = scene.orbit_constants(state0)
+    return lambda state: scene.advance(state, constants)
 
 
 def _poison_if(bad, *arrays):
@@ -107,12 +46,12 @@ def _poison_if(bad, *arrays):
                  for a in arrays)
 
 
-def _collide(scene: StickInCircle, state: jax.Array):
+def _collide(scene: Scene, state: jax.Array):
     state = jnp.asarray(state, dtype=jnp.float64)
-    return _poison_if(~_input_is_valid(scene, state), *_advance(scene, state))
+    return _poison_if(~scene.is_valid(state), *step_function(scene, state)(state))
 
 
-def collide(scene: StickInCircle, state: jax.Array):
+def collide(scene: Scene, state: jax.Array):
     """The collision map: from ``state`` to the state just after the next collision.
 
     Args:
@@ -177,35 +116,29 @@ def _check_eagerly(scene, state) -> None:
             check_state(scene, state)
 
 
-def _orbit_scan(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:
-    lens_direction = scene.direction(state0) if scene.kind == "lens" else None
+def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
+    state0 = jnp.asarray(state0, dtype=jnp.float64)
+    advance = step_function(scene, state0)
 
     def step(carry, _):
         state, t = carry
-        new_state, dt, contact = _advance(scene, state, lens_direction)
+        new_state, dt, contact = advance(state)
         t = t + dt
         return (new_state, t), (t, contact, new_state)
 
-    state0 = jnp.asarray(state0, dtype=jnp.float64)
     _, (t, contact, states) = jax.lax.scan(step, (state0, jnp.zeros((), jnp.float64)), length=n)
     # Later states come from the map itself; only the start needs checking.
-    t, contact, states = _poison_if(~_input_is_valid(scene, state0), t, contact, states)
+    t, contact, states = _poison_if(~scene.is_valid(state0), t, contact, states)
     return Orbit(t=t, contact=contact, state=states)
 
 
-# Orbits of a batch run in chunks of this many lanes, one chunk after another:
-# a vmapped root search waits for its slowest lane, so smaller chunks wait less,
-# and a chunk's working set stays in cache (see benchmarks/bench_collisions.py).
-_CHUNK = {"rotor": 64, "lens": 256, "circle": 256}
-
-
-def _orbit_batch(scene: StickInCircle, states0: jax.Array, n: int) -> Orbit:
-    batch = states0.shape[0]
-    chunk = max(1, min(batch, _CHUNK[scene.kind]))
+def _orbit_batch(scene: Scene, states0: jax.Array, n: int) -> Orbit:
+    batch, size = states0.shape
+    chunk = max(1, min(batch, scene.batch_chunk))
     pad = (-batch) % chunk
-    padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, 6))])
+    padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, size))])
     run_chunk = jax.vmap(_orbit_scan, in_axes=(None, 0, None))
-    out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, 6))
+    out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
     return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
 
 
@@ -216,7 +149,7 @@ def _orbit_jit(scene, state0, n):
     return _orbit_batch(scene, state0, n)
 
 
-def orbit(scene: StickInCircle, state0: jax.Array, n: int) -> Orbit:
+def orbit(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     """The first ``n`` collisions of the orbit from ``state0``.
 
     Args:

@@ -13,6 +13,7 @@ and ``P2 = c - ell u`` (contact ``-1``), ``u = (cos alpha, sin alpha)``.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -20,12 +21,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._first_root import first_root
+from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
 
 _ENDS = (1.0, -1.0)  # contact index 0 -> end P1 (+1), index 1 -> end P2 (-1)
 
-# Relative tolerance (in units of R^2) on a contact gap: an end this far outside
-# the circle is "through the wall"; this close to it, it is "on the wall".
-WALL_TOLERANCE = 1e-12
+# A second end within this many ulps of R^2 of the wall at a contact touches it
+# at the same instant (a lens corner): both impulses are applied in one event.
+_CORNER_ULPS = 64.0
+
+# Orbits of a batch run in chunks of this many lanes, one chunk after another:
+# a vmapped root search waits for its slowest lane, so smaller chunks wait less,
+# and a chunk's working set stays in cache (see benchmarks/bench_collisions.py).
+_BATCH_CHUNK = {"rotor": 64, "lens": 256, "circle": 256}
 
 # Static bound on root-finder steps per collision. Typical collisions take a
 # handful; a grazing departure can take a few hundred.
@@ -98,6 +105,11 @@ class StickInCircle(eqx.Module):
     inertia: jax.Array
     kind: str = eqx.field(static=True)
 
+    state_size: ClassVar[int] = 6
+    state_layout: ClassVar[str] = "[x, y, alpha, vx, vy, omega]"
+    gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
+    wall_name: ClassVar[str] = "the circle"
+
     def __init__(self, R, ell, mass=1.0, inertia=None, *, kind: str | None = None):
         leaves = [R, ell, mass] + ([] if inertia is None else [inertia])
         if all(_is_concrete(v) for v in leaves):
@@ -128,6 +140,91 @@ class StickInCircle(eqx.Module):
                 f"the parameters describe a {kind!r} scene but this scene was compiled as "
                 f"{self.kind!r} (inertia = inf is the lens, ell = 0 the circle): build a new StickInCircle"
             )
+
+    # -- what the collision engine asks of a scene (see jaxbill._scene) -------
+
+    @property
+    def batch_chunk(self) -> int:
+        return _BATCH_CHUNK[self.kind]
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        return self.R**2
+
+    def check_state_values(self, state: np.ndarray) -> None:
+        R = np.asarray(self.R)
+        if R.ndim and state.ndim == 2 and R.shape[0] != state.shape[0]:
+            raise ValueError(
+                f"a batch of {R.shape[0]} scenes needs a batch of {R.shape[0]} states; got {state.shape[0]}"
+            )
+        if self.kind == "lens" and np.any(state[..., 5] != 0):
+            raise ValueError(
+                "omega must be 0 for the static lens (inertia = inf): an infinitely heavy stick cannot spin"
+            )
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        params_ok = (
+            (self.R > 0)
+            & (self.ell >= 0)
+            & (self.ell < self.R)
+            & (self.mass > 0)
+            & jnp.isfinite(self.R)
+            & jnp.isfinite(self.mass)
+        )
+        if self.kind == "rotor":
+            params_ok &= (self.inertia > 0) & jnp.isfinite(self.inertia)
+        state_ok = jnp.all(jnp.isfinite(state))
+        inside = jnp.all(self.gaps(state) >= -WALL_TOLERANCE * self.R**2)
+        ok = params_ok & state_ok & inside
+        if self.kind == "lens":
+            ok &= state[5] == 0.0
+        return ok
+
+    def orbit_constants(self, state0: jax.Array) -> jax.Array | None:
+        """The static lens never turns: its direction ``u`` serves a whole orbit."""
+        return self.direction(state0) if self.kind == "lens" else None
+
+    def advance(self, state: jax.Array, lens_direction: jax.Array | None = None):
+        """Flight to the next contact and its impulse, for a state known to be valid."""
+        if self.kind == "rotor":
+            # The root search evaluates the turning stick itself; u is needed
+            # only at the contact.
+            t, index, ok = self.next_contact(state)
+            reached = jnp.isfinite(t)
+            moved = self.flight(state, jnp.where(reached, t, 0.0))
+            u = self.direction(moved)
+        else:
+            # The lens never turns and the circle ignores u: one u serves throughout.
+            u = lens_direction if lens_direction is not None else self.direction(state)
+            t, index, ok = self.next_contact(state, u)
+            reached = jnp.isfinite(t)
+            moved = self.flight(state, jnp.where(reached, t, 0.0))
+        kicked, contact = self._resolve_contact(moved, index, u)
+        new_state = jnp.where(reached, kicked, state)
+        contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
+        # A root search that hit its step bound proved nothing: poison the result.
+        new_state = jnp.where(ok, new_state, jnp.nan)
+        t = jnp.where(ok, t, jnp.nan)
+        return new_state, t, contact
+
+    def _resolve_contact(self, state: jax.Array, index: jax.Array, u: jax.Array):
+        """Apply the impulse at the touching end; a simultaneous second contact too."""
+        if self.kind == "circle":
+            return self.kick(state, 0.0, u), jnp.int32(1)
+        ends = jnp.asarray(_ENDS)
+        gaps = self.gaps(state, u)
+        speeds = self.approach_speeds(state, u)
+        other = 1 - index
+        corner = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.R**2) & (speeds[other] > 0.0)
+        # At a corner the faster-approaching end is kicked first, the other after
+        # it if it still approaches: a deterministic rule for an ill-posed event.
+        first = jnp.where(corner & (speeds[other] > speeds[index]), other, index)
+        second = 1 - first
+        state = self.kick(state, ends[first], u)
+        still_approaching = self.approach_speeds(state, u)[second] > 0.0
+        state = jnp.where(corner & still_approaching, self.kick(state, ends[second], u), state)
+        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.int32(ends[index]))
+        return state, contact
 
     # -- derived quantities --------------------------------------------------
 

@@ -7,7 +7,7 @@ import operator
 import jax
 import numpy as np
 
-from ._stick_in_circle import WALL_TOLERANCE
+from ._scene import WALL_TOLERANCE
 
 
 def is_concrete(x) -> bool:
@@ -31,37 +31,32 @@ def check_orbit_length(n) -> int:
 
 
 def check_state(scene, state) -> None:
-    """Raise ValueError unless ``state`` (shape ``(6,)`` or ``(B, 6)``) is a valid start."""
+    """Raise ValueError unless ``state`` (shape ``(S,)`` or ``(B, S)``) is a valid start."""
+    size, layout = scene.state_size, scene.state_layout
     s = np.asarray(state)
-    if s.ndim not in (1, 2) or s.shape[-1] != 6:
-        raise ValueError(
-            f"state must have shape (6,) or (B, 6) = [x, y, alpha, vx, vy, omega]; got shape {s.shape}"
-        )
+    if s.ndim not in (1, 2) or s.shape[-1] != size:
+        raise ValueError(f"state must have shape ({size},) or (B, {size}) = {layout}; got shape {s.shape}")
     if not np.issubdtype(s.dtype, np.number) or np.iscomplexobj(s):
         raise ValueError(f"state must be real numbers; got dtype {s.dtype}")
     s = s.astype(np.float64)
     if not np.all(np.isfinite(s)):
         raise ValueError("state must be finite: it contains NaN or inf")
-    R = np.asarray(scene.R, dtype=np.float64)
-    if R.ndim and s.ndim == 2 and R.shape[0] != s.shape[0]:
-        raise ValueError(f"a batch of {R.shape[0]} scenes needs a batch of {R.shape[0]} states; got {s.shape[0]}")
-    if scene.kind == "lens" and np.any(s[..., 5] != 0):
-        raise ValueError("omega must be 0 for the static lens (inertia = inf): an infinitely heavy stick cannot spin")
+    scene.check_state_values(s)
     # The scene's own geometry, evaluated eagerly: the same gaps and normal
     # velocities the collision map uses.
     gaps = np.asarray(scene.gaps(s))
     speeds = np.asarray(scene.approach_speeds(s))
-    wall = WALL_TOLERANCE * R[..., None] ** 2
-    for index, name in enumerate(("P1", "P2")):
+    wall = WALL_TOLERANCE * np.asarray(scene.gap_scale, dtype=np.float64)[..., None]
+    for index, name in enumerate(scene.gap_names):
         outside = gaps[..., index] < -wall[..., 0]
         if np.any(outside):
             raise ValueError(
-                f"state puts end {name} outside the circle (|{name}| must be <= R); "
+                f"state puts {name} outside {scene.wall_name}; "
                 f"first offending state: {np.atleast_2d(s)[np.argmax(np.atleast_1d(outside))].tolist()}"
             )
         on_wall = gaps[..., index] <= wall[..., 0]
         if np.any(on_wall & (speeds[..., index] >= 0)):
             raise ValueError(
-                f"state puts end {name} on the circle without moving inwards: an end may touch the "
-                "wall only as just after a collision (moving inwards); move it inside (|P| < R)"
+                f"state puts {name} on {scene.wall_name} without moving inwards: an end may touch "
+                "a wall only as just after a collision; move it inside"
             )

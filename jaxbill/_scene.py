@@ -1,0 +1,63 @@
+"""What the collision engine needs from a scene, and the contact codes every scene shares.
+
+A scene is an ``equinox.Module``: its physical parameters are differentiable
+leaves and its *kind* (which closed forms apply) is static, so that each scene
+compiles only the code it needs. The orbit scan, batching, streaming, tangent
+maps and Lyapunov spectra work on any object with the methods of ``Scene``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, Protocol
+
+import jax
+
+# Contact codes shared by every scene (``Orbit.contact``). Scenes add their own
+# nonzero codes for which end touched which wall.
+NO_CONTACT = 0  # the flight never reaches a wall: dt = inf, state unchanged
+SEVERAL_CONTACTS = 2  # two or more contacts resolved in one event (a corner or kink)
+
+# Relative tolerance on a contact gap (in units of ``Scene.gap_scale``): an end
+# this far outside a wall is "through the wall"; this close to it, "on the wall".
+WALL_TOLERANCE = 1e-12
+
+
+class Scene(Protocol):
+    """The interface of a scene (a structural type: scenes do not inherit from it)."""
+
+    state_size: ClassVar[int]  # length of the state vector
+    state_layout: ClassVar[str]  # e.g. "[x, y, alpha, vx, vy, omega]", for messages
+    gap_names: ClassVar[tuple[str, ...]]  # one name per contact gap, for messages
+    wall_name: ClassVar[str]  # "the circle", "the walls"
+
+    @property
+    def batch_chunk(self) -> int:
+        """Lanes per chunk in a batched run (a vmapped loop waits for its slowest lane)."""
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        """The unit of the gaps, for ``WALL_TOLERANCE``."""
+
+    def check(self) -> None:
+        """Raise ValueError for invalid concrete parameters."""
+
+    def check_state_values(self, state) -> None:
+        """Scene-specific eager checks of a finite float64 numpy state ``(..., state_size)``."""
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        """Traceable: parameters and ``state`` are a valid start (for NaN poisoning)."""
+
+    def orbit_constants(self, state0: jax.Array) -> Any:
+        """Quantities fixed along an orbit from ``state0`` (a pytree, or None)."""
+
+    def advance(self, state: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """``(new_state, dt, contact)``: the flight to the next collision and its impulse."""
+
+    def gaps(self, state: jax.Array) -> jax.Array:
+        """Contact gaps ``(..., K)``, >= 0 inside."""
+
+    def approach_speeds(self, state: jax.Array) -> jax.Array:
+        """Rate at which each gap closes ``(..., K)``, > 0 when approaching its wall."""
+
+    def energy(self, state: jax.Array) -> jax.Array:
+        """Kinetic energy ``(...)``."""
