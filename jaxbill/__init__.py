@@ -38,10 +38,15 @@ from ._sections import (  # noqa: E402
     wall_length,
 )
 from ._tangent import dynamical_indices, phase_velocity, tangent_map  # noqa: E402
-from ._stick_in_circle import StickInCircle, energy, angular_momentum, end_points  # noqa: E402
+from ._scene import angular_momentum, end_points, energy  # noqa: E402
+from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
+from ._stick_between_walls_3d import StickBetweenWalls3D  # noqa: E402
+from ._stick_in_circle import StickInCircle  # noqa: E402
 
 __all__ = [
     "StickInCircle",
+    "StickBetweenWalls2D",
+    "StickBetweenWalls3D",
     "collide",
     "orbit",
     "Orbit",

@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any, ClassVar, Protocol
 
 import jax
+import jax.numpy as jnp
 
 # Contact codes shared by every scene (``Orbit.contact``). Scenes add their own
 # nonzero codes for which end touched which wall.
@@ -61,3 +62,25 @@ class Scene(Protocol):
 
     def energy(self, state: jax.Array) -> jax.Array:
         """Kinetic energy ``(...)``."""
+
+
+def energy(scene: Scene, state: jax.Array) -> jax.Array:
+    """Kinetic energy of ``state`` (shape ``(..., S)``) in ``scene``: translation plus rotation."""
+    return scene.energy(jnp.asarray(state))
+
+
+def angular_momentum(scene: Scene, state: jax.Array) -> jax.Array:
+    """The scene's angular momentum (``StickInCircle``: about the origin; ``StickBetweenWalls3D``: ``L_z``).
+
+    Raises:
+        TypeError: for a scene without one (``StickBetweenWalls2D``: the walls
+            exert torques; its conserved momentum is ``M vx``).
+    """
+    if not hasattr(scene, "angular_momentum"):
+        raise TypeError(f"{type(scene).__name__} has no conserved angular momentum")
+    return scene.angular_momentum(jnp.asarray(state))
+
+
+def end_points(scene: Scene, state: jax.Array) -> jax.Array:
+    """Positions of the ends ``[P1, P2]``, shape ``(..., 2, D)`` (``D`` = 2 or 3)."""
+    return scene.end_points(jnp.asarray(state))

@@ -471,17 +471,3 @@ def _rotor_contact_time_jvp(primals, tangents):
     zero = np.zeros((), dtype=jax.dtypes.float0)
     return (t, index, ok), (t_tangent, zero, zero)
 
-
-def energy(scene: StickInCircle, state: jax.Array) -> jax.Array:
-    """Kinetic energy ``M |v|^2/2 + I omega^2/2`` of ``state`` (shape ``(..., 6)``)."""
-    return scene.energy(jnp.asarray(state))
-
-
-def angular_momentum(scene: StickInCircle, state: jax.Array) -> jax.Array:
-    """Total angular momentum about the origin (orbital plus spin); see ``StickInCircle``."""
-    return scene.angular_momentum(jnp.asarray(state))
-
-
-def end_points(scene: StickInCircle, state: jax.Array) -> jax.Array:
-    """Positions of the ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
-    return scene.end_points(jnp.asarray(state))

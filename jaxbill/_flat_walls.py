@@ -1,0 +1,205 @@
+"""What the two stick-between-walls scenes share: parameters, the contact search, contacts.
+
+Walls are the planes ``z = 0`` (the floor) and ``z = h`` (the ceiling). In
+both scenes the height of end ``k`` (``e_k = +1`` for P1, ``-1`` for P2) is a
+line plus a sinusoid,
+
+    z_k(t) = z0 + vz t + e_k ell a(t),   a(t) = A cos(W t) + D sin(W t) / W,
+
+where ``a`` is the vertical component of the stick's unit vector, turning at
+the angular speed ``W`` (``a(0) = A``, ``a'(0) = D``). The four contact gaps,
+in units of length and ``>= 0`` inside, are ``[z_1, z_2, h - z_1, h - z_2]``:
+P1 and P2 on the floor, then on the ceiling. Since ``|a''| = W^2 |a| <= W^2
+amp`` with ``amp = sqrt(A^2 + (D/W)^2) <= 1``, every gap has ``|g''| <= ell W^2
+amp``, the bound the safe-step first root search (``jaxbill._first_root``)
+needs; and no end can touch a wall while the centre is more than ``ell amp``
+from both walls, so the search jumps over that stretch of the flight.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._first_root import first_root
+from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
+
+FLOOR = 1  # contact code of end P1 on the floor (P2: -1)
+CEILING = 3  # contact code of end P1 on the ceiling (P2: -3)
+
+GAP_NAMES = ("end P1 (floor)", "end P2 (floor)", "end P1 (ceiling)", "end P2 (ceiling)")
+END_SIGNS = (1.0, -1.0, 1.0, -1.0)  # e_k of each gap
+_CONTACT_CODES = (FLOOR, -FLOOR, CEILING, -CEILING)
+
+# Two gaps within this many ulps of h at one contact touch at the same instant
+# (the stick landing flat: a kink of the (theta, z) billiard's wall).
+_CORNER_ULPS = 64.0
+
+# Static bound on root-search steps per collision.
+MAX_ROOT_STEPS = 4096
+
+_BATCH_CHUNK = {"rotor": 64, "static": 256}
+
+
+def _check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
+    if not np.all(ok):
+        bad = value[~ok] if value.ndim else value
+        raise ValueError(f"{name} must be {valid}; got {bad.ravel()[:4].tolist()}")
+
+
+def checked_parameters(h, ell, mass, inertia):
+    """Validate concrete parameters; return them broadcast to one shape, and the kind."""
+    h, ell, mass = (np.asarray(v, dtype=np.float64) for v in (h, ell, mass))
+    for name, v in (("h", h), ("ell", ell), ("mass", mass)):
+        _check_parameter(name, v, np.isfinite(v), "finite")
+    _check_parameter("h", h, h > 0, "> 0 (the distance between the walls)")
+    _check_parameter("ell", ell, ell > 0, "> 0 (the stick's half-length)")
+    _check_parameter("mass", mass, mass > 0, "> 0")
+    if inertia is None:
+        inertia = mass * ell**2
+    else:
+        inertia = np.asarray(inertia, dtype=np.float64)
+        _check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
+        _check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for a stick that never turns)")
+    static = bool(np.all(np.isinf(inertia)))
+    if not static and np.any(np.isinf(inertia)):
+        raise ValueError("inertia must be all finite or all inf within one batch of scenes")
+    return (*np.broadcast_arrays(h, ell, mass, inertia), "static" if static else "rotor")
+
+
+def parameters_are_valid(h, ell, mass, inertia, kind: str) -> jax.Array:
+    ok = (h > 0) & (ell > 0) & (mass > 0) & jnp.isfinite(h) & jnp.isfinite(ell) & jnp.isfinite(mass)
+    if kind == "rotor":
+        ok &= (inertia > 0) & jnp.isfinite(inertia)
+    return ok
+
+
+def batch_chunk(kind: str) -> int:
+    return _BATCH_CHUNK[kind]
+
+
+# -- the vertical profile of the ends ------------------------------------------
+
+
+def turn(spin2: jax.Array, t: jax.Array):
+    """``cos(W t)`` and ``sin(W t) / W`` from ``W^2``, smooth through ``W = 0``."""
+    turning = spin2 > 0.0
+    spin = jnp.sqrt(jnp.where(turning, spin2, 1.0))
+    cos = jnp.where(turning, jnp.cos(spin * t), 1.0)
+    sinc = jnp.where(turning, jnp.sin(spin * t) / spin, t)
+    return cos, sinc
+
+
+def gaps_along_flight(profile, t):
+    """The four gaps and their time derivatives after a flight of ``t``.
+
+    ``profile = (z0, vz, A, D, W^2, ell, h)``; see the module docstring.
+    """
+    z0, vz, along, turn_rate, spin2, ell, h = profile
+    cos, sinc = turn(spin2, t)
+    a = along * cos + turn_rate * sinc
+    a_slope = turn_rate * cos - along * spin2 * sinc
+    z, z_slope = z0 + vz * t, vz
+    signs = jnp.asarray(END_SIGNS[:2])
+    end_height = z + signs * ell * a
+    end_slope = z_slope + signs * ell * a_slope
+    gap = jnp.concatenate([end_height, h - end_height])
+    slope = jnp.concatenate([end_slope, -end_slope])
+    return gap, slope
+
+
+def _band_crossing(z0, vz, low, high):
+    """Interval ``(t_in, t_out)`` of ``t >= 0`` with ``low < z0 + vz t < high`` (empty if none)."""
+    safe_vz = jnp.where(vz == 0.0, 1.0, vz)
+    t_low, t_high = (low - z0) / safe_vz, (high - z0) / safe_vz
+    t_in = jnp.maximum(jnp.minimum(t_low, t_high), 0.0)
+    t_out = jnp.maximum(t_low, t_high)
+    inside_now = (z0 > low) & (z0 < high)
+    t_in = jnp.where(vz == 0.0, jnp.where(inside_now, 0.0, jnp.inf), t_in)
+    t_out = jnp.where(vz == 0.0, jnp.where(inside_now, jnp.inf, -jnp.inf), t_out)
+    no_band = low >= high  # a stick too long to turn over
+    return jnp.where(no_band, jnp.inf, t_in), jnp.where(no_band, -jnp.inf, t_out)
+
+
+def _search(profile):
+    z0, vz, along, turn_rate, spin2, ell, h = profile
+    eps = jnp.finfo(jnp.float64).eps
+    # amp bounds |a(t)| for all t (<= 1 for a unit vector), padded for rounding.
+    spin2_safe = jnp.where(spin2 > 0.0, spin2, 1.0)
+    amp = jnp.sqrt(along * along + jnp.where(spin2 > 0.0, turn_rate * turn_rate / spin2_safe, 0.0))
+    amp = jnp.minimum(amp * (1.0 + 8.0 * eps), 1.0)
+    reach = ell * amp
+    curvature = reach * spin2
+    quiet = _band_crossing(z0, vz, reach, h - reach)
+    time_scale = 1.0 / (jnp.abs(vz) / h + jnp.sqrt(spin2))
+    return first_root(lambda t: gaps_along_flight(profile, t), curvature, curvature, quiet, time_scale, MAX_ROOT_STEPS)
+
+
+@jax.custom_jvp
+def turning_contact_time(profile):
+    """First contact of a turning stick: ``(t, gap index, ok)`` (``t = inf``: never)."""
+    t, index, _, ok = _search(profile)
+    return t, index, ok
+
+
+@turning_contact_time.defjvp
+def _turning_contact_time_jvp(primals, tangents):
+    # Implicit differentiation of g_k(t*; profile) = 0, as for the stick in a circle.
+    (profile,) = primals
+    t, index, ok = turning_contact_time(profile)
+    finite = jnp.isfinite(t)
+    t_safe = jnp.where(finite, t, 0.0)
+    _, gap_tangent = jax.jvp(lambda p: gaps_along_flight(p, t_safe)[0][index], primals, tangents)
+    slope = gaps_along_flight(profile, t_safe)[1][index]
+    t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
+    zero = np.zeros((), dtype=jax.dtypes.float0)
+    return (t, index, ok), (t_tangent, zero, zero)
+
+
+def straight_contact_time(gaps: jax.Array, closing_speeds: jax.Array):
+    """First contact when every gap is linear in time: ``(t, gap index, ok)``."""
+    times = jnp.where(closing_speeds > 0.0, jnp.maximum(gaps, 0.0) / jnp.where(closing_speeds > 0.0, closing_speeds, 1.0), jnp.inf)
+    index = jnp.argmin(times)
+    return times[index], index, jnp.array(True)
+
+
+# -- contacts -------------------------------------------------------------------
+
+
+def resolve_contact(scene, state: jax.Array, index: jax.Array):
+    """Apply the impulse of gap ``index``; a simultaneous contact of the other end too.
+
+    ``scene`` provides ``gaps``, ``approach_speeds`` and ``kick(state, gap)``.
+    At most one gap per end can vanish (``h > 0``), so a second contact is the
+    other end on either wall: the faster-approaching of the two is kicked first,
+    the other after it if it still approaches (as for a lens corner).
+    """
+    gaps = scene.gaps(state)
+    speeds = scene.approach_speeds(state)
+    end = index % 2
+    other_end = 1 - end
+    # The other end's nearer wall.
+    other = jnp.where(gaps[other_end] <= gaps[other_end + 2], other_end, other_end + 2)
+    several = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * scene.h) & (speeds[other] > 0.0)
+    first = jnp.where(several & (speeds[other] > speeds[index]), other, index)
+    second = jnp.where(first == index, other, index)
+    state = scene.kick(state, first)
+    still_approaching = scene.approach_speeds(state)[second] > 0.0
+    state = jnp.where(several & still_approaching, scene.kick(state, second), state)
+    codes = jnp.asarray(_CONTACT_CODES, dtype=jnp.int32)
+    contact = jnp.where(several, jnp.int32(SEVERAL_CONTACTS), codes[index])
+    return state, contact
+
+
+def finish_step(state, moved_and_kicked, t, contact, ok):
+    """The step's result: unchanged for a flight that never ends, NaN for a failed search."""
+    reached = jnp.isfinite(t)
+    new_state = jnp.where(reached, moved_and_kicked, state)
+    contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
+    new_state = jnp.where(ok, new_state, jnp.nan)
+    return new_state, jnp.where(ok, t, jnp.nan), contact
+
+
+def state_is_inside(scene, state) -> jax.Array:
+    return jnp.all(scene.gaps(state) >= -WALL_TOLERANCE * scene.h)

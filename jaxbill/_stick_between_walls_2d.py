@@ -1,0 +1,173 @@
+"""A stick between two flat walls in a vertical plane.
+
+State layout (float64, shape ``(6,)``)::
+
+    [x, z, theta, vx, vz, omega]
+
+``(x, z)`` is the stick's centre (``z`` the height above the floor), ``theta``
+the angle of end P1 from the upward vertical, turning towards ``+x``, and
+``omega = dtheta/dt``. The ends are ``P1 = c + ell (sin theta, cos theta)``
+and ``P2 = c - ell (sin theta, cos theta)``. The walls are ``z = 0`` and
+``z = h``; there is no gravity. Contact codes: ``+1``/``-1`` end P1/P2 on the
+floor, ``+3``/``-3`` on the ceiling, ``2`` both ends at once, ``0`` none.
+
+With ``eta = z / kappa`` (``I = M kappa^2``) the point ``(theta, eta)`` flies
+straight between the walls ``(ell/kappa)|cos theta|`` and ``(h - ell|cos
+theta|)/kappa`` and reflects specularly; the walls have kinks where the stick
+is horizontal. The horizontal motion is free and decoupled.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _flat_walls as walls
+
+
+class StickBetweenWalls2D(eqx.Module):
+    """A stick of half-length ``ell`` bouncing between a floor ``z = 0`` and a ceiling ``z = h``, in a plane.
+
+    Args:
+        h: distance between the walls, ``h > 0``. A stick with ``2 ell > h``
+            cannot turn over; that is allowed.
+        ell: half-length of the stick, ``ell > 0``.
+        mass: total mass ``M > 0`` (default 1).
+        inertia: moment of inertia about the centre, ``I > 0``; ``None`` means
+            ``mass * ell**2`` (point masses ``M/2`` at the ends);
+            ``float('inf')`` is a stick that never turns (``omega`` must be 0).
+
+    Parameters may be arrays of one common shape ``(B,)`` for a batch of
+    scenes. The leaves ``h, ell, mass, inertia`` are differentiable; ``kind``
+    (``"rotor"`` or ``"static"``) is static: a stick that never turns has
+    straight gaps and closed-form contact times, and never traces the root
+    search.
+    """
+
+    h: jax.Array
+    ell: jax.Array
+    mass: jax.Array
+    inertia: jax.Array
+    kind: str = eqx.field(static=True)
+
+    state_size: ClassVar[int] = 6
+    state_layout: ClassVar[str] = "[x, z, theta, vx, vz, omega]"
+    gap_names: ClassVar[tuple[str, ...]] = walls.GAP_NAMES
+    wall_name: ClassVar[str] = "the walls"
+
+    def __init__(self, h, ell, mass=1.0, inertia=None):
+        leaves = [h, ell, mass] + ([] if inertia is None else [inertia])
+        if all(not isinstance(v, jax.core.Tracer) for v in leaves):
+            h, ell, mass, inertia, kind = walls.checked_parameters(h, ell, mass, inertia)
+        else:
+            # Traced parameters: checked inside jit by NaN poisoning instead.
+            inertia = mass * ell**2 if inertia is None else inertia
+            kind = "static" if isinstance(inertia, float) and math.isinf(inertia) else "rotor"
+        self.h, self.ell, self.mass, self.inertia = (jnp.asarray(v, dtype=jnp.float64) for v in (h, ell, mass, inertia))
+        self.kind = kind
+
+    def check(self) -> None:
+        """Raise ValueError if the (possibly replaced) parameters are invalid or change ``kind``."""
+        *_, kind = walls.checked_parameters(self.h, self.ell, self.mass, self.inertia)
+        if kind != self.kind:
+            raise ValueError(f"the parameters describe a {kind!r} scene, not {self.kind!r}: build a new scene")
+
+    # -- engine interface (jaxbill._scene) --------------------------------------
+
+    @property
+    def batch_chunk(self) -> int:
+        return walls.batch_chunk(self.kind)
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        return self.h
+
+    def check_state_values(self, state: np.ndarray) -> None:
+        h = np.asarray(self.h)
+        if h.ndim and state.ndim == 2 and h.shape[0] != state.shape[0]:
+            raise ValueError(f"a batch of {h.shape[0]} scenes needs a batch of {h.shape[0]} states; got {state.shape[0]}")
+        if self.kind == "static" and np.any(state[..., 5] != 0):
+            raise ValueError("omega must be 0 for a stick that never turns (inertia = inf)")
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        ok = walls.parameters_are_valid(self.h, self.ell, self.mass, self.inertia, self.kind)
+        ok &= jnp.all(jnp.isfinite(state)) & walls.state_is_inside(self, state)
+        if self.kind == "static":
+            ok &= state[5] == 0.0
+        return ok
+
+    def orbit_constants(self, state0: jax.Array) -> None:
+        return None
+
+    def advance(self, state: jax.Array, constants: None = None):
+        """Flight to the next contact and its impulse, for a state known to be valid."""
+        if self.kind == "static":
+            t, index, ok = walls.straight_contact_time(self.gaps(state), self.approach_speeds(state))
+        else:
+            t, index, ok = walls.turning_contact_time(self.vertical_profile(state))
+        moved = self.flight(state, jnp.where(jnp.isfinite(t), t, 0.0))
+        kicked, contact = walls.resolve_contact(self, moved, index)
+        return walls.finish_step(state, kicked, t, contact, ok)
+
+    # -- geometry and flight -------------------------------------------------------
+
+    def vertical_profile(self, state: jax.Array):
+        """``(z0, vz, A, D, W^2, ell, h)`` of ``jaxbill._flat_walls``: ``a = cos theta``."""
+        theta, omega = state[2], state[5]
+        return (state[1], state[4], jnp.cos(theta), -omega * jnp.sin(theta), omega * omega, self.ell, self.h)
+
+    def end_points(self, state: jax.Array) -> jax.Array:
+        """Ends ``[P1, P2]`` as ``(x, z)``, shape ``(..., 2, 2)``."""
+        c = state[..., 0:2]
+        arm = self.ell[..., None] * jnp.stack([jnp.sin(state[..., 2]), jnp.cos(state[..., 2])], axis=-1)
+        return jnp.stack([c + arm, c - arm], axis=-2)
+
+    def gaps(self, state: jax.Array) -> jax.Array:
+        """``[z1, z2, h - z1, h - z2]``, shape ``(..., 4)``, >= 0 inside (length units)."""
+        reach = self.ell * jnp.cos(state[..., 2])
+        heights = jnp.stack([state[..., 1] + reach, state[..., 1] - reach], axis=-1)
+        return jnp.concatenate([heights, self.h[..., None] - heights], axis=-1)
+
+    def approach_speeds(self, state: jax.Array) -> jax.Array:
+        """Rate at which each gap closes, shape ``(..., 4)`` (> 0: the end approaches that wall)."""
+        turn = self.ell * jnp.sin(state[..., 2]) * state[..., 5]
+        rise = jnp.stack([state[..., 4] - turn, state[..., 4] + turn], axis=-1)
+        return jnp.concatenate([-rise, rise], axis=-1)
+
+    def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
+        """Free flight for time ``t``; ``theta`` is wrapped into ``[-pi, pi)``."""
+        x, z, theta, vx, vz, omega = (state[..., i] for i in range(6))
+        if self.kind == "rotor":
+            theta = jnp.remainder(theta + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        return jnp.stack([x + vx * t, z + vz * t, theta, vx, vz, omega], axis=-1)
+
+    def kick(self, state: jax.Array, gap: jax.Array) -> jax.Array:
+        """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3).
+
+        The impulse ``J`` is vertical. With the end's height ``z_k = z + e_k
+        ell cos theta`` and ``s = dz_k/dtheta = -e_k ell sin theta``, the end's
+        vertical velocity ``vz + s omega`` reverses:
+        ``J = -2 (vz + s omega) / (1/M + s^2/I)``, ``vz' = vz + J/M``,
+        ``omega' = omega + s J / I``. Energy is conserved exactly.
+        """
+        x, z, theta, vx, vz, omega = (state[i] for i in range(6))
+        end_sign = jnp.asarray(walls.END_SIGNS)[gap]
+        lever = -end_sign * self.ell * jnp.sin(theta)
+        inv_mass = 1.0 / self.mass
+        inv_inertia = 1.0 / self.inertia if self.kind == "rotor" else jnp.zeros_like(self.inertia)
+        impulse = -2.0 * (vz + lever * omega) / (inv_mass + lever * lever * inv_inertia)
+        return jnp.stack([x, z, theta, vx, vz + impulse * inv_mass, omega + impulse * inv_inertia * lever])
+
+    # -- invariants -------------------------------------------------------------------
+
+    def energy(self, state: jax.Array) -> jax.Array:
+        """``M (vx^2 + vz^2)/2 + I omega^2/2`` (a stick that never turns drops the spin term)."""
+        e = 0.5 * self.mass * (state[..., 3] ** 2 + state[..., 4] ** 2)
+        if self.kind == "static":
+            return e
+        return e + 0.5 * self.inertia * state[..., 5] ** 2

@@ -1,0 +1,214 @@
+"""A stick between two flat walls in space.
+
+State layout (float64, shape ``(12,)``)::
+
+    [x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz]
+
+``c = (x, y, z)`` is the centre (``z`` the height above the floor), ``u`` the
+unit vector from the centre to end P1, ``v`` the centre's velocity and ``w`` the
+angular velocity, perpendicular to ``u`` (a thin stick has no spin about its
+own axis). The ends are ``P1 = c + ell u`` and ``P2 = c - ell u``. Orientation
+is a vector, not polar angles, so nothing breaks when the stick is vertical.
+
+Free flight: ``c`` moves straight; ``u`` turns uniformly about ``w``,
+``u(t) = u cos(|w| t) + (w x u) sin(|w| t) / |w|``; ``w`` is constant. The
+walls are ``z = 0`` and ``z = h``, contact codes as for
+``StickBetweenWalls2D``. The impulses are vertical, so the energy, the
+horizontal momentum and the vertical angular momentum ``L_z = M (x vy - y vx)
++ I wz`` are conserved. In the reduced ``(ell theta, z)`` picture the flights
+are curved by the potential ``L_z^2 / (2 M ell^2 sin^2 theta)``.
+
+A stick moving in the ``x``-``z`` plane, ``[x, 0, z, sin th, 0, cos th, vx,
+0, vz, 0, omega, 0]``, is the 2D scene's ``[x, z, th, vx, vz, omega]``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _flat_walls as walls
+
+# Tolerance on |u| = 1 and w . u = 0 in a given state (relative).
+UNIT_TOLERANCE = 1e-10
+
+
+class StickBetweenWalls3D(eqx.Module):
+    """A stick of half-length ``ell`` bouncing between the planes ``z = 0`` and ``z = h``.
+
+    Args:
+        h: distance between the walls, ``h > 0`` (``2 ell > h`` is allowed).
+        ell: half-length of the stick, ``ell > 0``.
+        mass: total mass ``M > 0`` (default 1).
+        inertia: moment of inertia about any axis through the centre
+            perpendicular to the stick, ``I > 0``; ``None`` means
+            ``mass * ell**2``; ``float('inf')`` is a stick that never turns
+            (``w`` must be 0).
+
+    The leaves are differentiable; ``kind`` (``"rotor"`` or ``"static"``) is
+    static, as for ``StickBetweenWalls2D``.
+    """
+
+    h: jax.Array
+    ell: jax.Array
+    mass: jax.Array
+    inertia: jax.Array
+    kind: str = eqx.field(static=True)
+
+    state_size: ClassVar[int] = 12
+    state_layout: ClassVar[str] = "[x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz]"
+    gap_names: ClassVar[tuple[str, ...]] = walls.GAP_NAMES
+    wall_name: ClassVar[str] = "the walls"
+
+    def __init__(self, h, ell, mass=1.0, inertia=None):
+        leaves = [h, ell, mass] + ([] if inertia is None else [inertia])
+        if all(not isinstance(v, jax.core.Tracer) for v in leaves):
+            h, ell, mass, inertia, kind = walls.checked_parameters(h, ell, mass, inertia)
+        else:
+            inertia = mass * ell**2 if inertia is None else inertia
+            kind = "static" if isinstance(inertia, float) and math.isinf(inertia) else "rotor"
+        self.h, self.ell, self.mass, self.inertia = (jnp.asarray(v, dtype=jnp.float64) for v in (h, ell, mass, inertia))
+        self.kind = kind
+
+    def check(self) -> None:
+        """Raise ValueError if the (possibly replaced) parameters are invalid or change ``kind``."""
+        *_, kind = walls.checked_parameters(self.h, self.ell, self.mass, self.inertia)
+        if kind != self.kind:
+            raise ValueError(f"the parameters describe a {kind!r} scene, not {self.kind!r}: build a new scene")
+
+    # -- engine interface (jaxbill._scene) --------------------------------------
+
+    @property
+    def batch_chunk(self) -> int:
+        return walls.batch_chunk(self.kind)
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        return self.h
+
+    def check_state_values(self, state: np.ndarray) -> None:
+        h = np.asarray(self.h)
+        if h.ndim and state.ndim == 2 and h.shape[0] != state.shape[0]:
+            raise ValueError(f"a batch of {h.shape[0]} scenes needs a batch of {h.shape[0]} states; got {state.shape[0]}")
+        u, w = state[..., 3:6], state[..., 9:12]
+        norm = np.linalg.norm(u, axis=-1)
+        if np.any(np.abs(norm - 1.0) > UNIT_TOLERANCE):
+            raise ValueError(f"u = state[3:6] must be a unit vector (to {UNIT_TOLERANCE:g}); got |u| = {norm.ravel()[:4].tolist()}")
+        along = np.abs(np.sum(u * w, axis=-1))
+        if np.any(along > UNIT_TOLERANCE * np.maximum(np.linalg.norm(w, axis=-1), 1.0)):
+            raise ValueError(
+                "w = state[9:12] must be perpendicular to u (a thin stick has no spin about its axis); "
+                f"got w . u = {along.ravel()[:4].tolist()}"
+            )
+        if self.kind == "static" and np.any(w != 0):
+            raise ValueError("w must be 0 for a stick that never turns (inertia = inf)")
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        ok = walls.parameters_are_valid(self.h, self.ell, self.mass, self.inertia, self.kind)
+        ok &= jnp.all(jnp.isfinite(state)) & walls.state_is_inside(self, state)
+        u, w = state[3:6], state[9:12]
+        ok &= jnp.abs(jnp.linalg.norm(u) - 1.0) <= UNIT_TOLERANCE
+        ok &= jnp.abs(u @ w) <= UNIT_TOLERANCE * jnp.maximum(jnp.linalg.norm(w), 1.0)
+        if self.kind == "static":
+            ok &= jnp.all(w == 0.0)
+        return ok
+
+    def orbit_constants(self, state0: jax.Array) -> None:
+        return None
+
+    def advance(self, state: jax.Array, constants: None = None):
+        """Flight to the next contact and its impulse, for a state known to be valid."""
+        if self.kind == "static":
+            t, index, ok = walls.straight_contact_time(self.gaps(state), self.approach_speeds(state))
+        else:
+            t, index, ok = walls.turning_contact_time(self.vertical_profile(state))
+        moved = self._renormalised(self.flight(state, jnp.where(jnp.isfinite(t), t, 0.0)))
+        kicked, contact = walls.resolve_contact(self, moved, index)
+        return walls.finish_step(state, kicked, t, contact, ok)
+
+    def _renormalised(self, state: jax.Array) -> jax.Array:
+        """``u`` back to unit length and ``w`` back perpendicular to it.
+
+        Rounding in the flight moves both by ulps per collision; left alone that
+        would drift without bound over a long run.
+        """
+        if self.kind == "static":
+            return state
+        u = state[3:6] / jnp.linalg.norm(state[3:6])
+        w = state[9:12] - (state[9:12] @ u) * u
+        return jnp.concatenate([state[0:3], u, state[6:9], w])
+
+    # -- geometry and flight -------------------------------------------------------
+
+    def vertical_profile(self, state: jax.Array):
+        """``(z0, vz, A, D, W^2, ell, h)`` of ``jaxbill._flat_walls``: ``a = uz``."""
+        u, w = state[3:6], state[9:12]
+        return (state[2], state[8], u[2], w[0] * u[1] - w[1] * u[0], w @ w, self.ell, self.h)
+
+    def end_points(self, state: jax.Array) -> jax.Array:
+        """Ends ``[P1, P2]``, shape ``(..., 2, 3)``."""
+        c = state[..., 0:3]
+        arm = self.ell[..., None] * state[..., 3:6]
+        return jnp.stack([c + arm, c - arm], axis=-2)
+
+    def gaps(self, state: jax.Array) -> jax.Array:
+        """``[z1, z2, h - z1, h - z2]``, shape ``(..., 4)``, >= 0 inside (length units)."""
+        reach = self.ell * state[..., 5]
+        heights = jnp.stack([state[..., 2] + reach, state[..., 2] - reach], axis=-1)
+        return jnp.concatenate([heights, self.h[..., None] - heights], axis=-1)
+
+    def approach_speeds(self, state: jax.Array) -> jax.Array:
+        """Rate at which each gap closes, shape ``(..., 4)`` (> 0: the end approaches that wall)."""
+        u, w = state[..., 3:6], state[..., 9:12]
+        turn = self.ell * (w[..., 0] * u[..., 1] - w[..., 1] * u[..., 0])
+        rise = jnp.stack([state[..., 8] + turn, state[..., 8] - turn], axis=-1)
+        return jnp.concatenate([-rise, rise], axis=-1)
+
+    def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
+        """Free flight for time ``t``: ``c + v t``, ``u`` turned about ``w`` by ``|w| t``."""
+        c, u, v, w = state[..., 0:3], state[..., 3:6], state[..., 6:9], state[..., 9:12]
+        if self.kind == "rotor":
+            cos, sinc = walls.turn(jnp.sum(w * w, axis=-1), t)
+            u = u * cos[..., None] + jnp.cross(w, u) * sinc[..., None]
+        return jnp.concatenate([c + v * jnp.asarray(t)[..., None], u, v, w], axis=-1)
+
+    def kick(self, state: jax.Array, gap: jax.Array) -> jax.Array:
+        """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3).
+
+        The impulse ``J zhat`` acts at ``r = e_k ell u``. The end's vertical
+        velocity ``vz + (w x r)_z`` reverses:
+        ``J = -2 (vz + (w x r)_z) / (1/M + |r x zhat|^2 / I)``,
+        ``v' = v + (J/M) zhat``, ``w' = w + (J/I) (r x zhat)``.
+        """
+        u, w = state[3:6], state[9:12]
+        arm = jnp.asarray(walls.END_SIGNS)[gap] * self.ell
+        lever = arm * jnp.stack([u[1], -u[0], jnp.zeros_like(u[0])])  # r x zhat
+        inv_mass = 1.0 / self.mass
+        inv_inertia = 1.0 / self.inertia if self.kind == "rotor" else jnp.zeros_like(self.inertia)
+        end_rise = state[8] + arm * (w[0] * u[1] - w[1] * u[0])
+        impulse = -2.0 * end_rise / (inv_mass + (lever @ lever) * inv_inertia)
+        v = state[6:9].at[2].add(impulse * inv_mass)
+        return jnp.concatenate([state[0:6], v, w + impulse * inv_inertia * lever])
+
+    # -- invariants -------------------------------------------------------------------
+
+    def energy(self, state: jax.Array) -> jax.Array:
+        """``M |v|^2/2 + I |w|^2/2`` (a stick that never turns drops the spin term)."""
+        v, w = state[..., 6:9], state[..., 9:12]
+        e = 0.5 * self.mass * jnp.sum(v * v, axis=-1)
+        if self.kind == "static":
+            return e
+        return e + 0.5 * self.inertia * jnp.sum(w * w, axis=-1)
+
+    def angular_momentum(self, state: jax.Array) -> jax.Array:
+        """The conserved vertical angular momentum ``L_z = M (x vy - y vx) + I wz``."""
+        x, y, vx, vy = state[..., 0], state[..., 1], state[..., 6], state[..., 7]
+        orbital = self.mass * (x * vy - y * vx)
+        if self.kind == "static":
+            return orbital
+        return orbital + self.inertia * state[..., 11]
