@@ -55,18 +55,25 @@ def collide(scene: Scene, state: jax.Array):
     """The collision map: from ``state`` to the state just after the next collision.
 
     Args:
-        scene: a ``StickInCircle``.
-        state: ``[x, y, alpha, vx, vy, omega]``, float64, shape ``(6,)``; both
-            ends inside the circle (an end on the wall must be moving inwards,
-            as it is just after a collision).
+        scene: a ``StickInCircle``, ``StickBetweenWalls2D`` or
+            ``StickBetweenWalls3D``.
+        state: float64, shape ``(scene.state_size,)``, laid out as the scene's
+            module docstring says (``StickInCircle``: ``[x, y, alpha, vx, vy,
+            omega]``); both ends inside (an end on a wall must be moving
+            inwards, as it is just after a collision).
 
     Returns:
         ``(new_state, dt, contact)``: the state just after the impulse, the
-        flight time ``dt`` to the collision, and the contact: ``+1`` end P1,
-        ``-1`` end P2, ``2`` both ends at once, ``0`` none. A flight that never
-        reaches the wall (e.g. ``v = 0`` with ``|c| + ell < R``) returns
+        flight time ``dt`` to the collision, and the contact: for
+        ``StickInCircle`` ``+1`` end P1, ``-1`` end P2; for the wall scenes
+        ``+1``/``-1`` P1/P2 on the floor and ``+3``/``-3`` on the ceiling;
+        ``2`` several contacts at once, ``0`` none. A flight that never
+        reaches a wall (e.g. ``v = 0`` with ``|c| + ell < R``) returns
         ``dt = inf``, contact 0 and the state unchanged. After a collision
-        ``alpha`` is wrapped into ``[-pi, pi)``.
+        angles are wrapped into ``[-pi, pi)``.
+
+    What follows describes ``StickInCircle``; the wall scenes use the same
+    safe-step search on their four gaps (see ``jaxbill._flat_walls``).
 
     The collision time. For the static lens (``inertia = inf``, ``omega = 0``)
     each end moves on a straight line and its contact time is the larger root
@@ -153,21 +160,22 @@ def orbit(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     """The first ``n`` collisions of the orbit from ``state0``.
 
     Args:
-        scene: a ``StickInCircle``.
-        state0: initial state ``[x, y, alpha, vx, vy, omega]``, shape ``(6,)``,
-            or a batch of them, shape ``(B, 6)``.
+        scene: any scene (``StickInCircle``, ``StickBetweenWalls2D``,
+            ``StickBetweenWalls3D``).
+        state0: initial state, shape ``(S,)`` (``S = scene.state_size``: 6, 6,
+            12), or a batch of them, shape ``(B, S)``.
         n: number of collisions (a Python int, static: each new ``n`` compiles).
 
     Returns:
-        ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, 6)``
+        ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, S)``
         (with a leading ``B`` axis for a batch). Equivalent to ``n`` applications
         of ``collide`` under ``lax.scan``; ``jax.vmap(orbit, in_axes=(None, 0,
         None))`` gives orbit by orbit what single runs give.
 
     Raises:
         ValueError: for ``n < 0`` or a bad ``state0`` (wrong shape, NaN/inf, an
-            end outside the circle or on it and moving outwards, spin for the
-            static lens). Inside ``jit``/``vmap`` these checks cannot run; the
+            end outside a wall or on it and moving outwards, spin for a stick
+            that cannot turn). Inside ``jit``/``vmap`` these checks cannot run; the
             result is poisoned with NaN instead (see ``collide``).
     """
     n = check_orbit_length(n)
