@@ -37,7 +37,7 @@ from ._sections import (  # noqa: E402
     section_state,
     wall_length,
 )
-from ._tangent import dynamical_indices, phase_velocity, tangent_map  # noqa: E402
+from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from ._scene import angular_momentum, end_points, energy  # noqa: E402
 from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
 from ._stick_between_walls_3d import StickBetweenWalls3D  # noqa: E402
@@ -68,6 +68,7 @@ __all__ = [
     "is_chaotic",
     "tangent_map",
     "dynamical_indices",
+    "dynamical_frame",
     "phase_velocity",
     "lyapunov_spectrum",
     "LyapunovSpectrum",

@@ -17,8 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._collision import _check_eagerly
+from ._scene import Scene
 from ._stick_in_circle import StickInCircle
-from ._tangent import dynamical_indices, push_forward
+from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from ._validation import check_count
 
 
@@ -39,13 +40,11 @@ class FiniteTimeLyapunov(eqx.Module):
 
 
 def _ftle_one(scene, state0, n, vector0):
-    idx = jnp.asarray(dynamical_indices(scene))
-
     def step(carry, _):
         state, v, log_growth, t = carry
-        vec6 = jnp.zeros((6, 1), v.dtype).at[idx, 0].set(v)
-        state, dt, _, vec6 = push_forward(scene, state, vec6, flow=True)
-        v = vec6[idx, 0]
+        vectors = to_state_space(scene, state, v[:, None])
+        state, dt, _, vectors = push_forward(scene, state, vectors, flow=True)
+        v = to_dynamical(scene, state, vectors)[:, 0]
         norm = jnp.linalg.norm(v)
         return (state, v / norm, log_growth + jnp.log(norm), t + dt), None
 
@@ -60,7 +59,7 @@ def _ftle_jit(scene, states, n, vector0):
     return FiniteTimeLyapunov(per_time=per_time, per_collision=per_collision, time=t, n=n)
 
 
-def finite_time_lyapunov(scene: StickInCircle, states: jax.Array, n: int) -> FiniteTimeLyapunov:
+def finite_time_lyapunov(scene: Scene, states: jax.Array, n: int) -> FiniteTimeLyapunov:
     """The largest Lyapunov exponent of each orbit of a batch, after ``n`` collisions.
 
     One tangent vector (a fixed direction in general position) is carried by the
@@ -70,14 +69,16 @@ def finite_time_lyapunov(scene: StickInCircle, states: jax.Array, n: int) -> Fin
     positive value.
 
     Args:
-        scene: a ``StickInCircle``.
-        states: shape ``(B, 6)`` (or ``(6,)``, treated as a batch of one).
+        scene: any scene (the vector lives in its dynamical directions, see
+            ``jaxbill.dynamical_frame``).
+        states: shape ``(B, S)`` (or ``(S,)``, treated as a batch of one),
+            ``S = scene.state_size``.
         n: number of collisions (Python int, static).
     """
     n = check_count("n", n, 1, "number of collisions")
     states = jnp.atleast_2d(jnp.asarray(states, jnp.float64))
     _check_eagerly(scene, states)
-    k = len(dynamical_indices(scene))
+    k = dynamical_size(scene)
     v0 = np.random.default_rng(7).standard_normal(k)
     return _ftle_jit(scene, states, n, jnp.asarray(v0 / np.linalg.norm(v0)))
 
@@ -121,7 +122,7 @@ def sample_energy_shell(
     seed: int = 0,
     margin: float = 1e-9,
 ):
-    """Initial conditions with the Liouville measure on a shell of fixed ``E`` (and ``L``).
+    """Initial conditions with the Liouville measure on a shell of fixed ``E`` (and ``L``), for a ``StickInCircle``.
 
     Configurations ``(x, y, alpha)`` are drawn uniformly among those with both
     ends inside the circle (by ``margin``, relative to ``R``). Velocities, in the
@@ -143,6 +144,10 @@ def sample_energy_shell(
         ``(states, weights)``: numpy arrays of shapes ``(size, 6)`` and ``(size,)``.
         Weighted averages over them are microcanonical averages.
     """
+    if not isinstance(scene, StickInCircle):
+        raise TypeError(
+            f"sample_energy_shell draws states inside a circle (StickInCircle); got {type(scene).__name__}"
+        )
     R = float(scene.R)
     ell = float(scene.ell)
     mass = float(scene.mass)

@@ -10,8 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._collision import _check_eagerly
-from ._stick_in_circle import StickInCircle
-from ._tangent import dynamical_indices, push_forward
+from ._scene import Scene
+from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 
 PER = ("time", "collision")
 
@@ -53,14 +53,15 @@ def _initial_vectors(n_dim: int, k: int) -> jax.Array:
 
 
 def _spectrum(scene, state0, n, per, qr_every, n_history, frame0):
-    idx = jnp.asarray(dynamical_indices(scene))
     flow = per == "time"
 
     def collision(carry, _):
+        # The frame's coordinates in the dynamical directions at the current
+        # state, carried to those at the next one (jaxbill._tangent).
         state, q, t = carry
-        vectors = jnp.zeros((6, q.shape[1]), q.dtype).at[idx].set(q)
+        vectors = to_state_space(scene, state, q)
         state, dt, _, vectors = push_forward(scene, state, vectors, flow=flow)
-        return (state, vectors[idx], t + dt), None
+        return (state, to_dynamical(scene, state, vectors), t + dt), None
 
     def qr_step(carry, _):
         state, q, t, logs = carry
@@ -110,7 +111,7 @@ def _spectrum_jit(scene, state0, n, per, qr_every, n_history, frame0):
 
 
 def lyapunov_spectrum(
-    scene: StickInCircle,
+    scene: Scene,
     state0: jax.Array,
     n: int,
     *,
@@ -124,31 +125,41 @@ def lyapunov_spectrum(
     autodiff tangent maps (``jaxbill.tangent_map``) and re-orthonormalised by a
     QR factorisation every ``qr_every`` collisions; the exponents are the
     averages of ``log |R_ii|``. Memory does not grow with ``n``: the run is one
-    ``lax.scan`` that keeps ``n_history`` checkpoints.
+    ``lax.scan`` that keeps ``n_history`` checkpoints. The frame lives in the
+    directions that carry the dynamics (``jaxbill.dynamical_frame``), written
+    in an orthonormal basis of them at each state.
 
     Args:
-        scene: a ``StickInCircle``.
-        state0: ``[x, y, alpha, vx, vy, omega]``, shape ``(6,)``, or a batch
-            ``(B, 6)`` (the run is vmapped; ``jax.vmap`` over this function works too).
+        scene: any scene (``StickInCircle``, ``StickBetweenWalls2D``,
+            ``StickBetweenWalls3D``).
+        state0: shape ``(S,)`` (``S = scene.state_size``), or a batch
+            ``(B, S)`` (the run is vmapped; ``jax.vmap`` over this function works too).
         n: number of collisions (a Python int, static); a multiple of ``qr_every``.
         per: ``"time"`` (default): the flow's spectrum per unit time, from the
             fixed-time flow tangent maps, with one exponent per dynamical
-            coordinate: 6 for a spinning stick, 4 = ``(x, y, vx, vy)`` for the
-            static lens and the circle (see ``jaxbill.dynamical_indices``).
+            direction ``k``: 6 for a spinning stick in a circle, 4 = ``(x, y,
+            vx, vy)`` for the static lens and the circle; 4 = ``(z, theta, vz,
+            omega)`` for ``StickBetweenWalls2D``, 6 for
+            ``StickBetweenWalls3D`` (2 for a wall stick that never turns; see
+            ``jaxbill.dynamical_frame``).
             ``"collision"``: the spectrum of the collision (section) map per
             collision, from its Jacobian restricted to the section: one exponent
-            fewer (the flow direction is not part of the section), 5 / 3 / 3.
+            fewer (the flow direction is not part of the section), ``k - 1``.
         qr_every: collisions between QR factorisations (static). 1 is always
             safe; larger values are faster but overflow or lose the small
             exponents if the frame grows by more than ~1e150 between QRs.
         n_history: number of checkpoints kept in ``history`` (static).
 
     Returns:
-        ``LyapunovSpectrum`` (with a leading batch axis for a batch of states).
+        ``LyapunovSpectrum`` (with a leading batch axis for a batch of states):
+        ``exponents`` ``(k,)``, ``history`` ``(H, k)``.
 
     Expected spectra (``physics.md``): a spinning stick ``{lam, 0, 0, 0, 0,
     -lam}`` (zeros: time shift, energy, angular momentum, rotation angle); the
-    static lens ``{lam, 0, 0, -lam}``; the circle all zero. The section map's
+    static lens ``{lam, 0, 0, -lam}``; the circle all zero. Between walls:
+    2D ``{lam, 0, 0, -lam}`` (time shift, energy); 3D ``{lam, 0, 0, 0, 0,
+    -lam}`` (time shift, energy, the vertical spin ``w_z`` and the rotation
+    of the stick about the vertical). The section map's
     spectrum is the flow's without the time-shift zero, multiplied by the mean
     flight time ``time / n``. Finite-``n`` estimates of zero exponents decay like
     ``log(n) / n``.
@@ -168,7 +179,7 @@ def lyapunov_spectrum(
     if n_history < 1:
         raise ValueError(f"n_history must be >= 1; got {n_history}")
     _check_eagerly(scene, state0)
-    n_dim = len(dynamical_indices(scene))
+    n_dim = dynamical_size(scene)
     k = n_dim if per == "time" else n_dim - 1
     frame0 = _initial_vectors(n_dim, k)
     return _spectrum_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, per, qr_every, n_history, frame0)

@@ -58,6 +58,14 @@ Labels, from the trace ``tr = mu + 1/mu``: elliptic (``|tr| < 2``: linearly
 stable), parabolic (``|tr| = 2`` to ``parabolic_tol``), hyperbolic
 (``tr > 2``) and inverse hyperbolic (``tr < -2``: hyperbolic with reflection).
 
+Sticks between walls
+--------------------
+``find_periodic_orbit`` and ``find_periodic_orbits`` also take
+``StickBetweenWalls2D`` and ``StickBetweenWalls3D``: there an orbit is periodic
+in the dynamical coordinates (the horizontal motion drifts freely; in 3D up to
+a rotation of the stick about the vertical). Their section coordinates,
+residuals and multipliers are described in ``jaxbill._periodic_walls``.
+
 Derivatives
 -----------
 The solve is made differentiable with respect to the scene's leaves (and the
@@ -77,7 +85,9 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from . import _periodic_walls as walls_orbits
 from ._collision import _check_eagerly, _collide
+from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from ._stick_in_circle import StickInCircle
 from ._validation import check_count
 
@@ -218,18 +228,21 @@ class PeriodicOrbit(eqx.Module):
 
     For a batch every field has a leading batch axis.
 
-    Attributes:
-        state: ``(6,)`` the state just after the orbit's first collision.
-        states: ``(p, 6)`` the states just after each of its ``p`` collisions;
+    Attributes (``S = scene.state_size``):
+        state: ``(S,)`` the state just after the orbit's first collision.
+        states: ``(p, S)`` the states just after each of its ``p`` collisions;
             ``states[-1]`` is ``state`` rotated by ``rotation`` about the origin
             (with the ends possibly exchanged, ``alpha -> alpha + pi``).
+            Between walls: shifted horizontally by ``(vx, vy) * period`` and,
+            in 3D, with ``u`` and ``w`` turned by ``rotation`` about the vertical.
         contacts: ``(p,)`` contact codes of those collisions.
         points: ``(p, K)`` the reduced section coordinates of the ``p`` section
             points (``points[0]`` is the fixed point solved for; see the module
-            docstring for the coordinates).
+            docstring for the coordinates). Between walls: ``(theta, z, vz,
+            omega)`` in 2D, ``(u_z, z, vz, (w x u)_z, w_z)`` in 3D.
         period: ``()`` the orbit's period in time (sum of the ``p`` flight times).
         rotation: ``()`` the rotation ``theta`` in ``[-pi, pi)`` after ``p``
-            collisions (0 for a periodic orbit proper).
+            collisions (0 for a periodic orbit proper; always 0 in 2D).
         residual: ``()`` max-norm of the scaled residual (0 to rounding at a solution).
         multipliers: ``(2,)`` complex, the nontrivial monodromy multipliers
             ``mu, 1/mu`` (trivial ones removed: see the module docstring).
@@ -237,8 +250,14 @@ class PeriodicOrbit(eqx.Module):
         stability: ``()`` int, index into ``STABILITY_LABELS``.
         converged: ``()`` bool: ``residual <= tol`` and no flight shorter than
             ``1e-6 R / speed`` (sliding along the wall, the grazing limit,
-            solves the equations trivially and is rejected).
-        energy, angular_momentum: ``()`` of the orbit.
+            solves the equations trivially and is rejected); between walls
+            also ``1e-6 h / speed``, and every contact a single one.
+        energy, angular_momentum: ``()`` of the orbit (``angular_momentum``
+            is NaN for ``StickBetweenWalls2D``, which conserves none).
+        monodromy: ``(K', K')`` the Jacobian of the reduced ``p``-map at the
+            fixed point, trivial directions included (the stick in a circle: in
+            the reduced coordinates; between walls: in the section coordinates
+            of ``jaxbill._periodic_walls``).
         p: number of collisions in one period (static).
     """
 
@@ -255,6 +274,7 @@ class PeriodicOrbit(eqx.Module):
     converged: jax.Array
     energy: jax.Array
     angular_momentum: jax.Array
+    monodromy: jax.Array
     p: int = eqx.field(static=True)
 
     @property
@@ -286,12 +306,17 @@ def _monodromy(scene, z, jac_top, parabolic_tol):
         reduced = basis.T @ jac_top @ basis
         multipliers = jnp.linalg.eigvals(reduced)
         trace = jnp.trace(reduced)
+    return multipliers, trace, _stability(trace, parabolic_tol)
+
+
+def _stability(trace, parabolic_tol):
+    """Index into ``STABILITY_LABELS`` from the trace ``mu + 1/mu``."""
     stability = jnp.where(
         jnp.abs(jnp.abs(trace) - 2.0) <= parabolic_tol,
         PARABOLIC,
         jnp.where(jnp.abs(trace) < 2.0, ELLIPTIC, jnp.where(trace > 0, HYPERBOLIC, INVERSE_HYPERBOLIC)),
     )
-    return multipliers, trace, stability.astype(jnp.int32)
+    return stability.astype(jnp.int32)
 
 
 def _solve(problem: _Problem, zeta0, max_steps):
@@ -362,8 +387,51 @@ def _periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, 
         converged=(residual <= tol) & ~grazing,
         energy=scene.energy(s0),
         angular_momentum=scene.angular_momentum(s0),
+        monodromy=jac_top,
         p=p,
     ), frame_phi
+
+
+def _walls_periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol,
+                          parabolic_tol):
+    """``find_periodic_orbit`` for the sticks between walls (see ``jaxbill._periodic_walls``)."""
+    problem, first_contact = walls_orbits.make_problem(
+        scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation
+    )
+    xi0 = problem.start()
+    if problem.has_rotation:
+        xi0 = xi0.at[-1].set(walls_orbits.initial_rotation(problem))
+    zeta, _ = _solve(problem, jax.lax.stop_gradient(problem.zeta(xi0)), max_steps)
+    xi = problem.z(zeta)
+    s0, states, contacts, flights = problem.iterate(xi)
+    residual = jnp.max(jnp.abs(jax.lax.stop_gradient(problem.residual_from(xi, s0, states[-1]))))
+    monodromy, multipliers, trace = walls_orbits.monodromy(jax.lax.stop_gradient(problem), jax.lax.stop_gradient(xi))
+    single = jnp.all((contacts != NO_CONTACT) & (contacts != SEVERAL_CONTACTS))
+    single &= (first_contact != NO_CONTACT) & (first_contact != SEVERAL_CONTACTS)
+    converged = (residual <= tol) & ~walls_orbits.flights_too_short(problem, flights) & single
+    points = walls_orbits.section_points(scene, jnp.concatenate([s0[None], states[:-1]]))
+    rotation_found = _wrap(xi[-1]) if problem.has_rotation else jnp.zeros(())
+    if hasattr(scene, "angular_momentum"):
+        momentum = scene.angular_momentum(s0)
+    else:
+        momentum = jnp.full((), jnp.nan)
+    return PeriodicOrbit(
+        state=s0,
+        states=states,
+        contacts=contacts,
+        points=points,
+        period=jnp.sum(flights),
+        rotation=rotation_found,
+        residual=residual,
+        multipliers=multipliers,
+        trace=trace,
+        stability=_stability(trace, parabolic_tol),
+        converged=converged,
+        energy=scene.energy(s0),
+        angular_momentum=momentum,
+        monodromy=monodromy,
+        p=p,
+    ), jnp.zeros(())
 
 
 def _check_period(period) -> int:
@@ -372,6 +440,8 @@ def _check_period(period) -> int:
 
 def _targets(scene, guess, energy, angular_momentum, rotation):
     e = scene.energy(guess) if energy is None else jnp.asarray(energy, jnp.float64)
+    if not isinstance(scene, StickInCircle):
+        return _walls_targets(scene, guess, e, angular_momentum, rotation)
     pin_rotation = rotation is not None
     if scene.kind == "rotor":
         pin_l = (angular_momentum is not None) or not pin_rotation
@@ -391,8 +461,35 @@ def _targets(scene, guess, energy, angular_momentum, rotation):
     return e, l0, theta, pin_l, pin_rotation
 
 
+def _walls_targets(scene, guess, e, angular_momentum, rotation):
+    turning_3d = walls_orbits.is_3d(scene) and scene.kind == "rotor"
+    if turning_3d:
+        pin_rotation = rotation is not None
+        pin_l = (angular_momentum is not None) or not pin_rotation
+    else:
+        if angular_momentum is not None:
+            raise ValueError(
+                "angular_momentum can be pinned only for StickBetweenWalls3D with a turning stick: "
+                "the 2D stick conserves no angular momentum"
+            )
+        if rotation is not None and float(rotation) != 0.0:
+            raise ValueError(
+                "rotation must be None or 0 here: only StickBetweenWalls3D with a turning stick has "
+                "relative periodic orbits (turned about the vertical)"
+            )
+        pin_rotation = pin_l = False
+    l0 = (
+        (scene.angular_momentum(guess) if angular_momentum is None else jnp.asarray(angular_momentum, jnp.float64))
+        if pin_l
+        else jnp.zeros(())
+    )
+    theta = jnp.asarray(0.0 if rotation is None else rotation, jnp.float64)
+    # Traced flags: every choice of pins shares one compilation.
+    return e, l0, theta, jnp.asarray(pin_l), jnp.asarray(pin_rotation)
+
+
 def find_periodic_orbit(
-    scene: StickInCircle,
+    scene: Scene,
     guess: jax.Array,
     period: int,
     *,
@@ -412,19 +509,30 @@ def find_periodic_orbit(
     its first section point is the solution rotated to the polar angle of the
     guess's own first contact.
 
+    Sticks between walls (``StickBetweenWalls2D``, ``StickBetweenWalls3D``):
+    the same, with the section coordinates of ``jaxbill._periodic_walls``:
+    periodic in the dynamical coordinates, the horizontal motion drifting
+    freely at the guess's ``vx`` (``vy``); in 3D up to a rotation of the stick
+    about the vertical. The contact of the guess's first collision (which end,
+    which wall) is the orbit's first contact.
+
     Args:
-        scene: a ``StickInCircle`` (leaves may be traced: the result is
+        scene: a ``StickInCircle``, ``StickBetweenWalls2D`` or
+            ``StickBetweenWalls3D`` (leaves may be traced: the result is
             differentiable in them by the implicit function theorem).
-        guess: ``[x, y, alpha, vx, vy, omega]``, shape ``(6,)``.
+        guess: a state, shape ``(S,)`` (``S = scene.state_size``).
         period: number of collisions ``p`` (Python int, static).
-        energy: energy of the orbit; default that of ``guess``.
-        angular_momentum: (spinning stick only) total angular momentum of the
-            orbit. Default: that of ``guess`` when ``rotation`` is free, and
-            not pinned when ``rotation`` is given (``L`` then follows from
-            the rotation).
+        energy: energy of the orbit; default that of ``guess`` (between walls:
+            the total energy, with the horizontal velocity held at the guess's).
+        angular_momentum: (spinning stick in a circle, or
+            ``StickBetweenWalls3D``: ``L_z``) angular momentum of the orbit.
+            Default: that of ``guess`` when ``rotation`` is free, and not
+            pinned when ``rotation`` is given (``L`` then follows from the
+            rotation).
         rotation: ``None`` (default) for a relative periodic orbit, periodic up
             to the rotation it finds; a number ``theta`` to ask for
             ``map^p(state) = Rot(theta) state`` (``0.0``: periodic proper).
+            ``StickBetweenWalls2D``: ``None`` or 0 only.
         tol: a solution counts as converged when the scaled residual's max-norm
             is ``<= tol``.
         max_steps: Levenberg-Marquardt step bound.
@@ -445,8 +553,10 @@ def find_periodic_orbit(
 
 @eqx.filter_jit
 def _find_jit(scene, guess, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol):
+    solve = _periodic_orbit if isinstance(scene, StickInCircle) else _walls_periodic_orbit
+
     def one(g, e_, l_):
-        return _periodic_orbit(scene, g, p, e_, l_, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol)
+        return solve(scene, g, p, e_, l_, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol)
 
     if guess.ndim == 1:
         return one(guess, e, l0)
@@ -465,7 +575,7 @@ def _same_orbit(a: PeriodicOrbit, b: PeriodicOrbit, atol: float) -> bool:
 
 
 def find_periodic_orbits(
-    scene: StickInCircle,
+    scene: Scene,
     guesses: jax.Array,
     period: int,
     *,
@@ -480,7 +590,7 @@ def find_periodic_orbits(
     """Search from many guesses; the distinct converged orbits, as a list.
 
     Args:
-        guesses: shape ``(B, 6)``; each is solved as in ``find_periodic_orbit``
+        guesses: shape ``(B, S)``; each is solved as in ``find_periodic_orbit``
             (vmapped, one compilation).
         energy, angular_momentum: pinned values shared by all guesses (default:
             each guess's own, as in ``find_periodic_orbit``). Pin the energy to
@@ -496,8 +606,9 @@ def find_periodic_orbits(
     """
     p = _check_period(period)
     guesses = jnp.asarray(guesses, jnp.float64)
-    if guesses.ndim != 2 or guesses.shape[1] != 6:
-        raise ValueError(f"guesses must have shape (B, 6); got {guesses.shape}")
+    size = scene.state_size
+    if guesses.ndim != 2 or guesses.shape[1] != size:
+        raise ValueError(f"guesses must have shape (B, {size}); got {guesses.shape}")
     _check_eagerly(scene, guesses)
     e, l0, theta, pin_l, pin_rotation = _targets(scene, guesses[0], energy, angular_momentum, rotation)
     b = guesses.shape[0]
@@ -557,6 +668,8 @@ def continue_periodic_orbit(
         ``return_predictions``, the pair ``(orbits, predictions)``, the latter
         of shape ``(len(values), K)``.
     """
+    if not isinstance(scene, StickInCircle):
+        raise TypeError(f"continue_periodic_orbit takes a StickInCircle; got {type(scene).__name__}")
     if parameter not in ("ell", "R", "mass", "inertia"):
         raise ValueError(f"parameter must be 'ell', 'R', 'mass' or 'inertia'; got {parameter!r}")
     if parameter == "inertia" and scene.kind != "rotor":

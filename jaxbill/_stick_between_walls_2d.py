@@ -171,3 +171,26 @@ class StickBetweenWalls2D(eqx.Module):
         if self.kind == "static":
             return e
         return e + 0.5 * self.inertia * state[..., 5] ** 2
+
+    # == analysis (tangent maps, Lyapunov spectra, periodic orbits: jaxbill._tangent) ======
+    # Added for the analysis modules; the engine above does not use these.
+
+    @property
+    def dynamical_indices(self) -> tuple[int, ...]:
+        """State coordinates that carry the dynamics: ``(z, theta, vz, omega)`` = ``(1, 2, 4, 5)``.
+
+        ``x`` and ``vx`` decouple: no contact time or impulse depends on them,
+        and in the flow's tangent map they only carry ``dx' = dx + t dvx``. A
+        stick that never turns keeps ``theta`` fixed and ``omega = 0``: then
+        only ``(z, vz)`` = ``(1, 4)`` move.
+        """
+        if self.kind == "rotor":
+            return (1, 2, 4, 5)
+        return (1, 4)
+
+    def phase_velocity(self, state: jax.Array) -> jax.Array:
+        """The flow's vector field during free flight, ``[vx, vz, omega, 0, 0, 0]``, shape ``(..., 6)``."""
+        state = jnp.asarray(state)
+        return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+    # == end of analysis block ============================================================

@@ -212,3 +212,49 @@ class StickBetweenWalls3D(eqx.Module):
         if self.kind == "static":
             return orbital
         return orbital + self.inertia * state[..., 11]
+
+    # == analysis (tangent maps, Lyapunov spectra, periodic orbits: jaxbill._tangent) ======
+    # Added for the analysis modules; the engine above does not use these.
+
+    @property
+    def dynamical_size(self) -> int:
+        """Dimension of the dynamical tangent space (``dynamical_frame``): 6, or 2 for a stick that never turns."""
+        return 6 if self.kind == "rotor" else 2
+
+    def phase_velocity(self, state: jax.Array) -> jax.Array:
+        """The flow's vector field during free flight, ``[v, w x u, 0, 0]``, shape ``(..., 12)``."""
+        state = jnp.asarray(state)
+        u, v, w = state[..., 3:6], state[..., 6:9], state[..., 9:12]
+        zeros = jnp.zeros_like(v)
+        return jnp.concatenate([v, jnp.cross(w, u), zeros, zeros], axis=-1)
+
+    def dynamical_frame(self, state: jax.Array) -> jax.Array:
+        """Orthonormal columns spanning the tangent directions that carry the dynamics at ``state``.
+
+        Shape ``(12, 6)`` (``(12, 2)`` for a stick that never turns). The
+        horizontal motion ``(x, y, vx, vy)`` decouples, as in 2D. The rest,
+        ``(z, u, vz, w)``, lives on the manifold ``|u| = 1``, ``w . u = 0``;
+        a perturbation ``(du, dw)`` stays on it to first order when
+        ``u . du = 0`` and ``w . du + u . dw = 0``. With ``dz`` and ``dvz`` that
+        leaves 6 directions: ``e_z``, ``e_vz`` and an orthonormal basis of the
+        null space of the ``2 x 6`` constraint matrix ``[[u, 0], [w, u]]`` in
+        the ``(du, dw)`` coordinates (4 directions: ``du`` perpendicular to
+        ``u``, and ``dw`` perpendicular to ``u`` corrected by ``-(w . du) u``).
+        The columns are orthonormal in the 12 state coordinates; which basis
+        of that space is chosen does not matter to a QR (only the span does).
+        A stick that never turns has ``u`` fixed and ``w = 0``: ``(e_z, e_vz)``.
+        """
+        state = jnp.asarray(state)
+        eye = jnp.eye(12, dtype=state.dtype)
+        vertical = eye[:, [2, 8]]
+        if self.kind == "static":
+            return vertical
+        u, w = state[3:6], state[9:12]
+        zero = jnp.zeros_like(u)
+        constraints = jnp.stack([jnp.concatenate([u, zero]), jnp.concatenate([w, u])])
+        _, _, vt = jnp.linalg.svd(constraints, full_matrices=True)
+        basis = jax.lax.stop_gradient(vt[2:].T)  # (6, 4) in (du, dw)
+        turning = jnp.zeros((12, 4), state.dtype).at[3:6].set(basis[0:3]).at[9:12].set(basis[3:6])
+        return jnp.concatenate([vertical, turning], axis=1)
+
+    # == end of analysis block ============================================================

@@ -380,6 +380,28 @@ class StickInCircle(eqx.Module):
             return orbital
         return orbital + self.inertia * state[..., 5]
 
+    # == analysis (tangent maps, Lyapunov spectra: jaxbill._tangent) =====================
+    # Added for the analysis modules; the engine above does not use these.
+
+    @property
+    def dynamical_indices(self) -> tuple[int, ...]:
+        """State coordinates that carry the dynamics (see ``jaxbill.dynamical_indices``).
+
+        All six for a spinning stick; ``(x, y, vx, vy)`` for the static lens
+        (``alpha`` is a constant parameter, ``omega = 0``) and for the circle
+        billiard (the spin is a free rotor decoupled from the centre).
+        """
+        if self.kind == "rotor":
+            return (0, 1, 2, 3, 4, 5)
+        return (0, 1, 3, 4)
+
+    def phase_velocity(self, state: jax.Array) -> jax.Array:
+        """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
+        state = jnp.asarray(state)
+        return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+    # == end of analysis block ============================================================
+
 
 def _exit_time(p: jax.Array, v: jax.Array, radius: jax.Array) -> jax.Array:
     """First ``t >= 0`` with ``|p + v t| = radius`` while moving outwards.
