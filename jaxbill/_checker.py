@@ -357,6 +357,11 @@ def check(
 
     Args:
         scene: a single (unbatched) ``StickInCircle``: rotor, lens or circle.
+            A ``StickBetweenWalls2D`` or ``3D`` goes to their own checker,
+            ``jaxbill._walls_checker.check_walls`` (the reduced ``(z, psi)``
+            flight with its centrifugal potential; the arguments below that
+            it shares are passed on, the rest keep its defaults, and lengths
+            are in units of ``h``).
         state0: ``[x, y, alpha, vx, vy, omega]``, shape ``(6,)``.
         n: number of collisions.
         tol: scaled tolerance of the comparison (see ``CheckReport``) and of
@@ -391,6 +396,14 @@ def check(
     Raises:
         NotImplementedError: for a batched scene or ``state0``.
     """
+    if not isinstance(scene, StickInCircle):
+        # Imported here: the walls checker builds on this module's report types.
+        from ._walls_checker import check_walls
+
+        shared = dict(tol=tol, graze_tol=graze_tol, max_steps=max_steps, corner_tol=corner_tol)
+        if solver is not None:
+            shared["solver"] = solver
+        return check_walls(scene, state0, n, **shared)
     start = time.perf_counter()
     state0 = np.asarray(state0, dtype=np.float64)
     if state0.shape != (6,) or np.ndim(scene.R) != 0:
