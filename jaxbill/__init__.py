@@ -37,6 +37,15 @@ from ._sections import (  # noqa: E402
     section_state,
     wall_length,
 )
+from ._walls_sections import (  # noqa: E402
+    floor_section,
+    floor_section_bound,
+    floor_seeds,
+    floor_state,
+    reduced_wall_section,
+    theta_z_path,
+    wall_twin_divergence,
+)
 from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from ._scene import angular_momentum, end_points, energy  # noqa: E402
 from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
@@ -61,6 +70,13 @@ __all__ = [
     "section_seeds",
     "incoming_states",
     "wall_length",
+    "floor_section",
+    "floor_section_bound",
+    "floor_seeds",
+    "floor_state",
+    "reduced_wall_section",
+    "theta_z_path",
+    "wall_twin_divergence",
     "curve_thickness",
     "covered_fraction",
     "count_islands",

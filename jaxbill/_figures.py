@@ -17,9 +17,21 @@ into ``out_dir``:
 * ``fig2_reduced_vs_projected.png``: the Fig. 2 orbits in the reduced section
   (at their common E and L) beside the projection;
 * ``spiral_column.png``: the Fig. 1 orbit as a point in the spiral column;
+* ``walls_sections.png``: the stick between two flat walls (ell = 1,
+  I = M ell^2), h = 1.5, 2.05, 2.5, 3, 4, 8: the 2D floor section
+  ``(theta mod pi, p)`` (top) and the 3D reduced section at ``I w_z = 0.6
+  sqrt(2 I E')`` (bottom), many orbits each, chaotic ones grey;
+* ``walls_3d_flights.png``: one start point's flights in the ``(kappa theta, z)``
+  plane: the 2D stick (straight), the same orbit run in 3D (``L_z = 0``:
+  straight, the polar angle folded at the vertical) and a 3D stick spinning
+  about the vertical (curved, kept off the vertical by ``L_z^2 / (2 I sin^2
+  theta)``);
 * ``summary.json`` and ``summary.txt``: every panel's parameters, orbit and
   collision counts, worst invariant drifts, chaotic fraction, start states
-  (json), timings.
+  (json), timings. The wall scenes' panels are under ``"walls"`` (not
+  ``"figures"``), with their own drifts: relative energy, and the conserved
+  momentum (``M vx`` in 2D, ``L_z`` in 3D) in units of ``sqrt(2 M E')`` and
+  ``sqrt(2 I E')``.
 
 All orbits of a section start on the section itself (``section_seeds`` /
 ``section_state``) at energy ``E = 1/2`` and total angular momentum ``L = 0``
@@ -41,6 +53,15 @@ seeds uniform in the area-preserving ``(s, p)``, the chaotic share of seeds
 estimates the chaotic share of the section. Fig. 2's orbits also get their
 ``curve_thickness`` (a curve: below 0.01; an area: above 0.4).
 
+The wall scenes (``jaxbill._walls_sections``) start every orbit on the floor
+section at ``E' = 1/2`` (no horizontal motion), seeds uniform in the
+area-preserving ``(theta, p)``; chaotic means a twin with ``(theta_dot,
+eta_dot)`` turned by ``1e-11`` rad ends up more than ``1e-3`` away;
+``median_separation_collisions`` records after how many collisions the twins
+are ``1e-4`` apart and ``lyapunov_per_collision`` the median ``ln(1e7) / that``
+over the chaotic orbits; ``regular_island_counts`` (3D) the pieces each regular
+orbit draws on a 150 x 150 grid (``count_islands``).
+
 ``quick=True`` runs the same figures with few orbits and collisions (for
 tests: under half a minute).
 """
@@ -58,8 +79,11 @@ from matplotlib.figure import Figure
 
 from . import plotting
 from ._collision import orbit as run_orbit
-from ._section_measures import CHAOTIC_DIVERGENCE, curve_thickness, divergence, twin_states
+from . import _walls_sections as ws
+from ._section_measures import CHAOTIC_DIVERGENCE, count_islands, curve_thickness, divergence, twin_states
 from ._sections import half_corner_angle, paper_section, reduced_section, section_seeds, section_state
+from ._stick_between_walls_2d import StickBetweenWalls2D
+from ._stick_between_walls_3d import StickBetweenWalls3D
 from ._stick_in_circle import StickInCircle
 
 ENERGY = 0.5
@@ -77,6 +101,10 @@ FILES = (
     "summary.json",
     "summary.txt",
 )
+# Written too, recorded under summary["walls"]: the stick between two flat walls.
+WALLS_FILES = ("walls_sections.png", "walls_3d_flights.png")
+WALLS_ELL = 1.0
+WALLS_ENERGY = 0.5  # E': the energy without the (absent) horizontal motion
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,13 +120,19 @@ class Settings:
     ell_values: tuple = (1.9, 1.5, 1.1, 0.5, 0.1)
     inertia_ell: float = 1.9
     inertia_factors: tuple = (1.0, 0.01, 0.005)
+    walls_h_values: tuple = (1.5, 2.05, 2.5, 3.0, 4.0, 8.0)
+    walls_orbits: int = 40
+    walls_collisions: int = 2_000
+    walls_spin: float = 0.6  # I w_z of the 3D row, in units of sqrt(2 I E')
+    walls_flight_h: float = 3.0
+    walls_flight_collisions: int = 12
     dpi: int = 150
     quick: bool = False
 
     @classmethod
     def quick_settings(cls) -> "Settings":
         return cls(fig2_collisions=600, section_orbits=6, section_collisions=300, lens_orbits=6,
-                   lens_collisions=300, dpi=60, quick=True)
+                   lens_collisions=300, walls_orbits=6, walls_collisions=300, dpi=60, quick=True)
 
 
 # Fig. 2's two orbits, as section points (s, p) at ell = 1.9, E = 1/2, L = 0:
@@ -262,6 +296,176 @@ def _scan_figure(panels, title: str) -> Figure:
     return fig
 
 
+# -- the stick between two flat walls ------------------------------------------
+
+
+def _walls_scene_record(scene) -> dict:
+    return {"h": float(scene.h), "ell": float(scene.ell), "mass": float(scene.mass),
+            "inertia": float(scene.inertia), "kind": scene.kind, "dimension": 3 if scene.state_size == 12 else 2}
+
+
+def _walls_invariants(scene, states):
+    """Energy and conserved momentum (``M vx`` in 2D, ``L_z`` in 3D) in NumPy: ``(E, P, E')``."""
+    states = np.asarray(states)
+    mass, inertia = float(scene.mass), float(scene.inertia)
+    if scene.state_size == 12:
+        v, w = states[..., 6:9], states[..., 9:12]
+        energy = 0.5 * mass * np.sum(v * v, axis=-1) + 0.5 * inertia * np.sum(w * w, axis=-1)
+        internal = 0.5 * mass * v[..., 2] ** 2 + 0.5 * inertia * np.sum(w * w, axis=-1)
+        momentum = mass * (states[..., 0] * v[..., 1] - states[..., 1] * v[..., 0]) + inertia * w[..., 2]
+    else:
+        energy = 0.5 * mass * (states[..., 3] ** 2 + states[..., 4] ** 2) + 0.5 * inertia * states[..., 5] ** 2
+        internal = 0.5 * mass * states[..., 4] ** 2 + 0.5 * inertia * states[..., 5] ** 2
+        momentum = mass * states[..., 3]
+    return energy, momentum, internal
+
+
+def _walls_panel(label, scene, states0, orb, points, distances, **extra):
+    """One wall-scene panel's record (counts, drifts, chaotic share, twin separation) and its chaotic mask."""
+    states0 = np.asarray(states0)
+    contact = np.asarray(orb.contact)
+    energy, momentum, _ = _walls_invariants(scene, orb.state)
+    e0, momentum0, internal0 = _walls_invariants(scene, states0)
+    energy_drift = float(np.max(np.abs(energy / e0[:, None] - 1.0)))
+    three = scene.state_size == 12
+    unit = np.sqrt(2.0 * (float(scene.inertia) if three else float(scene.mass)) * e0)
+    n = contact.shape[1]
+    divergence_ = np.max(distances[:, -max(1, n // 10):], axis=1)
+    chaotic = divergence_ > CHAOTIC_DIVERGENCE
+    separation = ws.separation_collisions(distances)
+    rates = np.log(1e-4 / TWIN_DELTA) / separation[chaotic & np.isfinite(separation)]
+    finite = np.all(np.isfinite(np.asarray(points)), axis=-1)
+    record = {
+        "label": label,
+        "scene": _walls_scene_record(scene),
+        "energy": _common_value(internal0),
+        "spin": _common_value(float(scene.inertia) * states0[:, 11]) if three else None,
+        "orbits": len(states0),
+        "collisions_per_orbit": n,
+        "collisions": len(states0) * n,
+        "floor_collisions": int(np.sum(finite)),
+        "several_contacts": int(np.sum(contact == 2)),
+        "missed_or_failed": int(np.sum(contact == 0)),
+        "energy_drift": energy_drift,
+        "conserved_momentum": "L_z" if three else "M vx",
+        "momentum_drift": float(np.max(np.abs(momentum - momentum0[:, None]) / unit[:, None])),
+        "chaotic_fraction": float(np.mean(chaotic)),
+        "median_separation_collisions": float(np.median(separation)),
+        "lyapunov_per_collision": float(np.median(rates)) if len(rates) else None,
+        "twins": True,
+        "twin_delta": TWIN_DELTA,
+    }
+    record.update(extra)
+    record["states0"] = states0.tolist()
+    return record, chaotic
+
+
+def _island_counts(scene, points, chaotic, energy, spin) -> list[int]:
+    """Pieces drawn by each regular orbit on a 150 x 150 grid of the section (``count_islands``)."""
+    top = float(np.nanmax(np.asarray(ws.floor_section_bound(scene, np.linspace(0.0, np.pi, 401), energy, spin))))
+    extent = ((0.0, np.pi), (-top, top))
+    return [count_islands(p, bins=(150, 150), extent=extent) for p in np.asarray(points)[~chaotic]]
+
+
+def _walls_figures(settings: Settings, save, bar) -> list:
+    """``walls_sections.png`` and ``walls_3d_flights.png``; their records for ``summary["walls"]``."""
+    out = []
+    t0 = time.perf_counter()
+    energy = WALLS_ENERGY
+    count, n = settings.walls_orbits, settings.walls_collisions
+    hs = settings.walls_h_values
+    fig = Figure(figsize=(3.4 * len(hs), 7.0), layout="constrained")
+    axes = fig.subplots(2, len(hs), squeeze=False)
+    records, flights = [], {}
+    for j, h in enumerate(hs):
+        scene2, scene3 = StickBetweenWalls2D(h, WALLS_ELL), StickBetweenWalls3D(h, WALLS_ELL)
+        spin = settings.walls_spin * float(np.sqrt(2.0 * float(scene3.inertia) * energy))
+        theta3, p3 = ws.floor_seed_points(scene3, count, energy, spin)
+        theta2, p2 = ws.floor_seed_points(scene2, count, energy)
+        # The 2D seeds start at the 3D row's first section point: the flights figure compares them.
+        theta2[0], p2[0] = theta3[0], p3[0]
+        seeds3 = np.asarray(ws.floor_state(scene3, theta3, p3, energy, spin))
+        seeds2 = np.asarray(ws.floor_state(scene2, theta2, p2, energy))
+
+        orb2, dist2 = ws.orbits_with_twin_distances(scene2, seeds2, n, TWIN_DELTA)
+        points2 = np.asarray(ws.floor_section(scene2, orb2.state, orb2.contact))
+        record2, chaotic2 = _walls_panel(f"2D, h = {h:g}", scene2, seeds2, orb2, points2, dist2)
+        orb3, dist3 = ws.orbits_with_twin_distances(scene3, seeds3, n, TWIN_DELTA)
+        points3 = np.asarray(ws.reduced_wall_section(scene3, orb3.state, orb3.contact))
+        record3, chaotic3 = _walls_panel(f"3D, h = {h:g}, L_z != 0", scene3, seeds3, orb3, points3, dist3)
+        record3["regular_island_counts"] = _island_counts(scene3, points3, chaotic3, energy, spin)
+        records += [record2, record3]
+        if h == settings.walls_flight_h:
+            flights.update(scene2=scene2, scene3=scene3, seeds2=seeds2, seeds3=seeds3, orb2=orb2, orb3=orb3)
+
+        ax = axes[0, j]
+        plotting.draw_floor_section(ax, points2[chaotic2][:, ::2], colors="0.75", markersize=0.6)
+        if (~chaotic2).any():
+            plotting.draw_floor_section(ax, points2[~chaotic2], markersize=0.8)
+        plotting.draw_floor_section(ax, points2[0], colors="tab:red", markersize=1.0)
+        plotting.draw_floor_section_bounds(ax, scene2, energy)
+        ax.set_title(f"2D, h = {h:g}: {100 * record2['chaotic_fraction']:.0f}% chaotic\n"
+                     f"twins 1e-4 apart after {record2['median_separation_collisions']:.0f} collisions")
+        ax = axes[1, j]
+        plotting.draw_floor_section(ax, points3[chaotic3][:, ::2], "3d", colors="0.75", markersize=0.6)
+        if (~chaotic3).any():
+            plotting.draw_floor_section(ax, points3[~chaotic3], "3d", markersize=0.9)
+        plotting.draw_floor_section_bounds(ax, scene3, energy, spin)
+        ax.set_title(f"3D, h = {h:g}, L_z != 0: {100 * record3['chaotic_fraction']:.0f}% chaotic")
+        if j:
+            axes[0, j].set_ylabel("")
+            axes[1, j].set_ylabel("")
+    fig.suptitle(f"Stick between walls (ell = 1, I = M ell^2, E' = 1/2), {count} orbits x {n} collisions per panel: "
+                 f"floor sections, 2D (top; red: one orbit) and 3D with I w_z = {settings.walls_spin:g} sqrt(2 I E') "
+                 "(bottom); grey: chaotic, colours: regular")
+    path = save(fig, WALLS_FILES[0])
+    out.append({"name": "walls_sections", "file": path,
+                "description": "stick between walls: 2D floor sections (top) and 3D reduced sections at L_z != 0 "
+                               "(bottom) as h varies", "panels": records, "seconds": time.perf_counter() - t0})
+    bar.advance("walls: sections")
+
+    t0 = time.perf_counter()
+    records = []
+    if flights:
+        scene2, scene3 = flights["scene2"], flights["scene3"]
+        # The 2D orbits again in 3D, in the x-z plane (L_z = 0): the same batch size and length as the
+        # 3D sections, so no new compilation.
+        embedded = _embed_2d(flights["seeds2"])
+        orb3z, dist3z = ws.orbits_with_twin_distances(scene3, embedded, n, TWIN_DELTA)
+        points3z = np.asarray(ws.reduced_wall_section(scene3, orb3z.state, orb3z.contact))
+        record3z, _ = _walls_panel(f"3D, h = {float(scene3.h):g}, L_z = 0", scene3, embedded, orb3z, points3z,
+                                   dist3z)
+        records.append(record3z)
+        k = settings.walls_flight_collisions
+        panels = [
+            (scene2, flights["seeds2"][0], flights["orb2"], "2D: straight flights (theta unwrapped)"),
+            (scene3, embedded[0], orb3z, "3D, L_z = 0: the same orbit (polar angle)"),
+            (scene3, flights["seeds3"][0], flights["orb3"],
+             f"3D, I w_z = {settings.walls_spin:g} sqrt(2 I E'): curved flights"),
+        ]
+        fig = Figure(figsize=(15, 6.2), layout="constrained")
+        axes = fig.subplots(1, 3)
+        for ax, (scene, state0, orb, title) in zip(axes, panels):
+            one = type(orb)(t=np.asarray(orb.t)[0], contact=np.asarray(orb.contact)[0], state=np.asarray(orb.state)[0])
+            plotting.draw_wall_flights(ax, scene, state0, one, collisions=k)
+            ax.set_title(title)
+        fig.suptitle(f"The same start on the floor section, h = {float(scene2.h):g}, ell = 1: "
+                     f"{k} flights in the (kappa theta, z) plane (kappa = ell); dotted: the L_z barrier")
+        path = save(fig, WALLS_FILES[1])
+        out.append({"name": "walls_3d_flights", "file": path,
+                    "description": "flights in the (ell theta, z) plane: 2D, 3D with L_z = 0, 3D with L_z != 0",
+                    "panels": records, "seconds": time.perf_counter() - t0})
+    bar.advance("walls: 3D flights")
+    return out
+
+
+def _embed_2d(states2d) -> np.ndarray:
+    """2D ``[x, z, th, vx, vz, om]`` as 3D states in the ``x``-``z`` plane."""
+    x, z, th, vx, vz, om = np.moveaxis(np.asarray(states2d, dtype=np.float64), -1, 0)
+    zero = np.zeros_like(x)
+    return np.stack([x, zero, z, np.sin(th), zero, np.cos(th), vx, zero, vz, zero, om, zero], axis=-1)
+
+
 def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: bool = True,
                  settings: Settings | None = None) -> dict:
     """Compute and write every figure and the summary into ``out_dir``; return the summary.
@@ -276,7 +480,7 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     if settings is None:
         settings = Settings.quick_settings() if quick else Settings()
     os.makedirs(out_dir, exist_ok=True)
-    steps = 8
+    steps = 10
     bar = Progress(steps, progress)
     bar.show("starting (compiling the collision map)")
     started = time.perf_counter()
@@ -409,6 +613,8 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
                [figures[2]["panels"][0]], t0)
     bar.advance("reduced vs projected")
 
+    walls_figures = _walls_figures(settings, save, bar)
+
     all_panels = [p for f in figures for p in f["panels"]]
     summary = {
         "jaxbill_figures": 1,
@@ -421,6 +627,10 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         "total_collisions": sum(p["collisions"] for f in figures if f["name"] not in ("spiral_column", "fig2_reduced")
                                 for p in f["panels"]),
         "figures": figures,
+        "walls": walls_figures,
+        "walls_worst_energy_drift": max((p["energy_drift"] for f in walls_figures for p in f["panels"]), default=None),
+        "walls_worst_momentum_drift": max((p["momentum_drift"] for f in walls_figures for p in f["panels"]),
+                                          default=None),
     }
     with open(os.path.join(out_dir, "summary.json"), "w") as handle:
         json.dump(summary, handle, indent=1)
@@ -459,4 +669,24 @@ def summary_text(summary: dict) -> str:
               "(tori: < 1e-6).", ""]
     for figure in summary["figures"]:
         lines.append(f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)")
+    if summary.get("walls"):
+        lines += ["", "Stick between two flat walls: ell = 1, mass 1, I = M ell^2, E' = 1/2 (no horizontal motion).",
+                  f"{'file':<23} {'panel':<24} {'orbits':>6} {'coll/orbit':>10} {'floor':>7} {'flat':>5} "
+                  f"{'dE/E':>9} {'dP':>9} {'chaotic':>7} {'apart':>6} {'lyap':>6}"]
+        for figure in summary["walls"]:
+            for panel in figure["panels"]:
+                lyap = panel["lyapunov_per_collision"]
+                lines.append(
+                    f"{figure['file']:<23} {panel['label']:<24} {panel['orbits']:>6} "
+                    f"{panel['collisions_per_orbit']:>10} "
+                    f"{panel['floor_collisions']:>7} {panel['several_contacts']:>5} {panel['energy_drift']:>9.1e} "
+                    f"{panel['momentum_drift']:>9.1e} {panel['chaotic_fraction']:>7.2f} "
+                    f"{panel['median_separation_collisions']:>6.0f} {'-' if lyap is None else f'{lyap:.2f}':>6}")
+        lines += ["floor = floor collisions (section points); flat = contacts 2 (flat landings, kinks); "
+                  "dP = max drift of M vx (2D) or L_z (3D) in units of sqrt(2 M E') or sqrt(2 I E');",
+                  "chaotic = share of orbits that part from a twin ((theta_dot, eta_dot) turned by 1e-11 rad) by "
+                  "more than 1e-3; apart = median collisions until 1e-4 apart; lyap = median ln(1e7)/apart "
+                  "of the chaotic ones (per collision).", ""]
+        for figure in summary["walls"]:
+            lines.append(f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)")
     return "\n".join(lines) + "\n"

@@ -301,3 +301,176 @@ def spiral_column_figure(scene, state0, orbit, **kwargs) -> Figure:
     fig = Figure(figsize=(7, 7), layout="constrained")
     draw_spiral_column(fig.add_subplot(projection="3d"), scene, state0, orbit, **kwargs)
     return fig
+
+
+# -- the stick between two flat walls ------------------------------------------
+#
+# ``draw_walls_2d``: the stick between the floor and the ceiling in the vertical
+# plane (configuration space). ``draw_wall_billiard``: the paper's billiard
+# picture, the walls ``b(theta)``, ``t(theta)`` drawn in lengths as ``(kappa theta,
+# z)`` (``kappa = sqrt(I/M)``; the paper's ``(ell theta, z)`` for I = M ell^2),
+# where every bounce is a specular reflection. ``draw_wall_flights``: an
+# orbit's flights in that plane (straight in 2D and for L_z = 0, curved for
+# L_z != 0). ``draw_floor_section`` and ``draw_floor_section_bounds``: the floor
+# section ``(theta mod pi, p)`` of ``jaxbill._walls_sections`` and its edge.
+
+_FLOOR_SECTION_LABELS = {
+    "2d": r"$\theta$ mod $\pi$ (rad; stick flat at $\pi/2$)",
+    "3d": r"polar angle $\theta$ of the stick (rad)",
+}
+_FLOOR_P_LABEL = r"$p = (I\dot\theta + M v_z\, dz/d\theta)/\sqrt{2 I E'}$"
+
+
+def draw_walls_2d(ax, scene, state0, orbit, *, collisions: int | None = None, stick_every: int = 1,
+                  path_color: str = "tab:blue", stick_color: str = "0.45"):
+    """The 2D stick between the floor ``z = 0`` and the ceiling ``z = h``: centre path and stick at contacts.
+
+    Args:
+        ax: a 2D ``Axes``.
+        scene: a ``StickBetweenWalls2D``.
+        state0, orbit: one orbit and its initial state.
+        collisions: how many collisions to draw (default all).
+        stick_every: draw the stick at every ``stick_every``-th contact.
+
+    The touching end is marked with a dot (red on the floor, green on the
+    ceiling; both ends at a flat landing).
+    """
+    h, ell = float(scene.h), float(scene.ell)
+    states = _np(orbit.state)
+    n = len(states) if collisions is None else min(collisions, len(states))
+    states, contacts = states[:n], _np(orbit.contact)[:n]
+    start = _np(state0)
+    path = np.concatenate([start[None, :2], states[:, :2]])
+    ax.plot(path[:, 0], path[:, 1], color=path_color, lw=0.9, label="path of the centre")
+    ax.plot(*start[:2], "o", color=path_color, ms=4)
+    arm = ell * np.stack([np.sin(states[:, 2]), np.cos(states[:, 2])], axis=-1)
+    ends = np.stack([states[:, :2] + arm, states[:, :2] - arm], axis=1)
+    for j in range(0, n, max(1, stick_every)):
+        ax.plot(ends[j, :, 0], ends[j, :, 1], color=stick_color, lw=1.0, alpha=0.8)
+        for k in range(2):
+            height = ends[j, k, 1]
+            if abs(height) < 1e-9 * h:
+                ax.plot(*ends[j, k], ".", color="tab:red", ms=5)
+            elif abs(h - height) < 1e-9 * h:
+                ax.plot(*ends[j, k], ".", color="tab:green", ms=5)
+    lo = min(path[:, 0].min(), ends[..., 0].min()) - 0.2 * ell
+    hi = max(path[:, 0].max(), ends[..., 0].max()) + 0.2 * ell
+    for level, name in ((0.0, "floor"), (h, "ceiling")):
+        ax.plot([lo, hi], [level, level], color="k", lw=1.5)
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(-0.08 * h, 1.08 * h)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (length)")
+    ax.set_ylabel("z (length)")
+    ax.set_title(f"h = {h:g}, ell = {ell:g}: {n} collisions ({int(np.sum(contacts == 2))} flat landings)")
+    return ax
+
+
+def draw_wall_billiard(ax, scene, theta_range=(0.0, np.pi), *, color="k", shade: bool = True):
+    """The paper's billiard: floor ``kappa b(theta) = ell|cos theta|`` and ceiling ``h - ell|cos theta|``.
+
+    Drawn in lengths against ``kappa theta`` (aspect equal, so reflections look
+    specular); where the two walls cross (``2 ell |cos theta| > h``: the
+    stick does not fit) the strip is shaded.
+    """
+    h, ell = float(scene.h), float(scene.ell)
+    kappa = float(np.sqrt(float(scene.inertia) / float(scene.mass)))
+    theta = np.linspace(theta_range[0], theta_range[1], 1200)
+    floor = ell * np.abs(np.cos(theta))
+    ceiling = h - floor
+    ax.plot(kappa * theta, floor, color=color, lw=1.2)
+    ax.plot(kappa * theta, ceiling, color=color, lw=1.2)
+    if shade:
+        ax.fill_between(kappa * theta, floor, -0.05 * h, color="0.85", lw=0)
+        ax.fill_between(kappa * theta, ceiling, 1.05 * h, color="0.85", lw=0)
+        blocked = floor > ceiling
+        if blocked.any():
+            ax.fill_between(kappa * theta, -0.05 * h, 1.05 * h, where=blocked, color="0.7", lw=0)
+    ax.set_xlim(kappa * theta_range[0], kappa * theta_range[1])
+    ax.set_ylim(-0.05 * h, 1.05 * h)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"$\kappa\,\theta$ (length; $\kappa = \sqrt{I/M}$)")
+    ax.set_ylabel("z (length)")
+    return ax
+
+
+def draw_wall_flights(ax, scene, state0, orbit, *, collisions: int | None = None, points_per_flight: int = 60,
+                      color: str = "tab:blue", walls: bool = True, margin: float = 0.15, label=None):
+    """An orbit's flights in the ``(kappa theta, z)`` plane, with the walls.
+
+    2D: ``theta`` unwrapped along the orbit, straight lines. 3D: ``theta`` the
+    polar angle of ``u``; with ``L_z != 0`` the flights curve, and the
+    potential barrier ``sin^2 theta = (I w_z)^2 / (2 I E')`` (dotted) keeps the
+    stick away from the vertical.
+    """
+    from ._walls_sections import _internal_energy_np, flight_paths
+
+    states = _np(orbit.state)
+    n = len(states) if collisions is None else min(collisions, len(states))
+    short = type(orbit)(t=_np(orbit.t)[:n], contact=np.asarray(orbit.contact)[:n], state=states[:n])
+    paths = flight_paths(scene, state0, short, points_per_flight)
+    kappa = float(np.sqrt(float(scene.inertia) / float(scene.mass)))
+    flat = paths.reshape(-1, 2)
+    ax.plot(flat[:, 0], flat[:, 1], color=color, lw=0.9, label=label)
+    ax.plot(paths[:, -1, 0], paths[:, -1, 1], ".", color=color, ms=3.5)
+    if walls:
+        lo, hi = flat[:, 0].min() / kappa - margin, flat[:, 0].max() / kappa + margin
+        if scene.state_size == 12:
+            lo, hi = min(lo, 0.0), max(hi, np.pi)
+        draw_wall_billiard(ax, scene, (lo, hi))
+    if scene.state_size == 12:
+        start = _np(state0)
+        spin = float(scene.inertia) * start[11]
+        energy = float(_internal_energy_np(scene, start))
+        if spin != 0.0:
+            edge = np.arcsin(min(1.0, abs(spin) / np.sqrt(2.0 * float(scene.inertia) * energy)))
+            for angle in (edge, np.pi - edge):
+                ax.axvline(kappa * angle, color="tab:purple", lw=0.8, ls=":")
+    return ax
+
+
+def draw_floor_section(ax, points, kind: str = "2d", *, colors=None, markersize: float = 0.6, labels=None,
+                       title: str | None = None, rasterized: bool = True):
+    """Floor-section points ``(..., 2) = [theta, p]`` of one or many orbits (NaN skipped), ``theta`` across.
+
+    ``kind``: ``"2d"`` (``floor_section``: ``theta mod pi``) or ``"3d"``
+    (``reduced_wall_section``: the polar angle). ``points`` ``(n, 2)`` or
+    ``(B, n, 2)``; ``colors``: one per orbit or one for all.
+    """
+    if kind not in _FLOOR_SECTION_LABELS:
+        raise ValueError(f"kind must be one of {tuple(_FLOOR_SECTION_LABELS)}; got {kind!r}")
+    pts = _np(points)
+    if pts.ndim == 2:
+        pts = pts[None]
+    if pts.ndim != 3 or pts.shape[-1] != 2:
+        raise ValueError(f"points must have shape (n, 2) or (B, n, 2); got {np.shape(points)}")
+    if colors is None:
+        colors = orbit_colors(len(pts))
+    elif isinstance(colors, str) or (np.ndim(colors) == 1 and len(colors) in (3, 4) and not isinstance(colors[0], str)):
+        colors = [colors] * len(pts)
+    for i, orbit_points in enumerate(pts):
+        ok = np.all(np.isfinite(orbit_points), axis=-1)
+        ax.plot(orbit_points[ok, 0], orbit_points[ok, 1], linestyle="none", marker=".", markersize=markersize,
+                markeredgewidth=0, color=colors[i % len(colors)], rasterized=rasterized,
+                label=None if labels is None else labels[i])
+    ax.set_xlabel(_FLOOR_SECTION_LABELS[kind])
+    ax.set_ylabel(_FLOOR_P_LABEL)
+    ax.set_xlim(0.0, np.pi)
+    if title is not None:
+        ax.set_title(title)
+    if labels is not None:
+        ax.legend(loc="upper right", fontsize="small", markerscale=12, framealpha=0.8)
+    return ax
+
+
+def draw_floor_section_bounds(ax, scene, energy: float = 0.5, spin: float = 0.0, *, color="k"):
+    """Edge ``p = +-floor_section_bound(theta)`` of the floor section at ``E'`` (and ``I w_z = spin``), and the kink."""
+    from ._walls_sections import floor_section_bound
+
+    theta = np.linspace(0.0, np.pi, 1601)
+    bound = _np(floor_section_bound(scene, theta, energy, spin))
+    ax.plot(theta, bound, color=color, lw=0.8)
+    ax.plot(theta, -bound, color=color, lw=0.8)
+    ax.axvline(0.5 * np.pi, color=color, lw=0.6, ls=":")
+    ax.set_xlim(0.0, np.pi)
+    return ax

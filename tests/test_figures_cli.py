@@ -21,7 +21,7 @@ import pytest
 
 import jaxbill as jb
 from jaxbill import cli
-from jaxbill._figures import FILES
+from jaxbill._figures import FILES, WALLS_FILES
 
 
 @pytest.fixture(scope="module")
@@ -141,3 +141,102 @@ def test_console_command_offers_figures():
     result = subprocess.run([sys.executable, "-m", "jaxbill.cli", "figures", "--help"],
                             capture_output=True, text=True, check=True)
     assert "--out" in result.stdout and "--quick" in result.stdout
+
+
+# -- the stick between two flat walls (summary["walls"]) ---------------------------------
+
+
+def _walls_scene(record):
+    cls = jb.StickBetweenWalls3D if record["dimension"] == 3 else jb.StickBetweenWalls2D
+    return cls(record["h"], record["ell"], mass=record["mass"], inertia=record["inertia"])
+
+
+def _walls_twins(scene, states0, delta):
+    """Twins by the definition: (theta_dot, z_dot / kappa) turned by delta; in 3D the polar rate is w . e_phi."""
+    kappa = math.sqrt(float(scene.inertia) / float(scene.mass))
+    c, s = math.cos(delta), math.sin(delta)
+    twins = states0.copy()
+    if states0.shape[1] == 12:
+        u, w = states0[:, 3:6], states0[:, 9:12]
+        e_phi = np.stack([-u[:, 1], u[:, 0], np.zeros(len(u))], axis=1) / np.hypot(u[:, 0], u[:, 1])[:, None]
+        rate, eta_dot = np.sum(w * e_phi, axis=1), states0[:, 8] / kappa
+        twins[:, 9:12] = w + ((c * rate - s * eta_dot) - rate)[:, None] * e_phi
+        twins[:, 8] = kappa * (s * rate + c * eta_dot)
+    else:
+        rate, eta_dot = states0[:, 5], states0[:, 4] / kappa
+        twins[:, 5] = c * rate - s * eta_dot
+        twins[:, 4] = kappa * (s * rate + c * eta_dot)
+    return twins
+
+
+def test_walls_figures_are_written(quick_run):
+    out, summary = quick_run
+    assert {figure["file"] for figure in summary["walls"]} == set(WALLS_FILES)
+    text = (out / "summary.txt").read_text()
+    for name in WALLS_FILES:
+        path = out / name
+        assert path.is_file() and path.stat().st_size > 1000, name
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        assert name in text
+    sections = next(f for f in summary["walls"] if f["file"] == "walls_sections.png")["panels"]
+    heights = [1.5, 2.05, 2.5, 3.0, 4.0, 8.0]
+    assert [p["scene"]["h"] for p in sections if p["scene"]["dimension"] == 2] == heights
+    assert [p["scene"]["h"] for p in sections if p["scene"]["dimension"] == 3] == heights
+    for panel in sections:
+        assert panel["scene"]["ell"] == 1.0 and panel["scene"]["inertia"] == pytest.approx(1.0)
+        if panel["scene"]["dimension"] == 2:
+            # the 2D stick between walls is a dispersing billiard: every orbit is chaotic, at every h
+            assert panel["chaotic_fraction"] == 1.0
+        else:
+            assert panel["spin"] == pytest.approx(0.6, abs=1e-12)  # 0.6 sqrt(2 I E') with I = 1, E' = 1/2
+            assert 0.0 <= panel["chaotic_fraction"] <= 1.0
+
+
+def test_walls_summary_numbers_match_a_direct_computation(quick_run):
+    _, summary = quick_run
+    worst_energy, worst_momentum = 0.0, 0.0
+    for figure in summary["walls"]:
+        for panel in figure["panels"]:
+            scene = _walls_scene(panel["scene"])
+            states0 = np.asarray(panel["states0"])
+            n, count = panel["collisions_per_orbit"], len(states0)
+            assert panel["twins"]
+            orb = jb.orbit(scene, np.concatenate([states0, _walls_twins(scene, states0, panel["twin_delta"])]), n)
+            states = np.asarray(orb.state)[:count]
+            contact = np.asarray(orb.contact)[:count]
+            assert panel["orbits"] == count and panel["collisions"] == count * n
+            assert np.all(np.isfinite(states))
+            assert panel["missed_or_failed"] == int(np.sum(contact == 0)) == 0
+            assert panel["several_contacts"] == int(np.sum(contact == 2))
+            mass, inertia = float(scene.mass), float(scene.inertia)
+            if states0.shape[1] == 12:
+                def energy(s):
+                    return 0.5 * mass * np.sum(s[..., 6:9] ** 2, -1) + 0.5 * inertia * np.sum(s[..., 9:12] ** 2, -1)
+
+                def momentum(s):
+                    return mass * (s[..., 0] * s[..., 7] - s[..., 1] * s[..., 6]) + inertia * s[..., 11]
+                unit = np.sqrt(2 * inertia * energy(states0))
+                low_end = states[..., 2] - float(scene.ell) * np.abs(states[..., 5])  # the lower end's height
+            else:
+                def energy(s):
+                    return 0.5 * mass * (s[..., 3] ** 2 + s[..., 4] ** 2) + 0.5 * inertia * s[..., 5] ** 2
+
+                def momentum(s):
+                    return mass * s[..., 3]
+                unit = np.sqrt(2 * mass * energy(states0))
+                low_end = states[..., 1] - float(scene.ell) * np.abs(np.cos(states[..., 2]))
+            assert panel["energy"] == pytest.approx(0.5, abs=1e-12)  # no horizontal motion: E = E'
+            e0 = energy(states0)
+            drift = np.max(np.abs(energy(states) / e0[:, None] - 1))
+            assert panel["energy_drift"] == pytest.approx(drift, rel=1e-9, abs=1e-16)
+            assert drift < 1e-11
+            p_drift = np.max(np.abs(momentum(states) - momentum(states0)[:, None]) / unit[:, None])
+            assert panel["momentum_drift"] == pytest.approx(p_drift, rel=1e-9, abs=1e-16)
+            assert p_drift < 1e-12
+            # floor collisions: an end on the floor (contacts +-1, or 2 with the lower end at z = 0)
+            floor = (np.abs(contact) == 1) | ((contact == 2) & (np.abs(low_end) < 1e-9))
+            assert panel["floor_collisions"] == int(np.sum(floor))
+            assert 0.3 * count * n < panel["floor_collisions"] < 0.7 * count * n
+            worst_energy, worst_momentum = max(worst_energy, drift), max(worst_momentum, p_drift)
+    assert summary["walls_worst_energy_drift"] == pytest.approx(worst_energy, rel=1e-12)
+    assert summary["walls_worst_momentum_drift"] == pytest.approx(worst_momentum, rel=1e-12, abs=1e-300)
