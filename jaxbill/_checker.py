@@ -501,6 +501,10 @@ def check(
     )
     if scene.kind == "lens":
         directions[:, 5] = 0.0
+    if float(jnp.min(scene.gaps(jnp.asarray(state0)))) <= 1e-9 * R * R:
+        # A start on the wall (just after a collision): a moved end could be
+        # pushed through it; perturbing the velocities alone keeps it valid.
+        directions[:, 0:3] = 0.0
     bumps = horizon_eps * directions * np.array([R, R, 1.0, V, V, spin_scale])
     perturbed = _orbit(scene, state0 + bumps, n)
     departed = np.zeros(n, bool)

@@ -121,3 +121,12 @@ def test_running_out_of_steps_is_flagged():
     result = check(scene, jnp.array(CASES["paper-ell1.9"][3]), 5, chunk_steps=64, max_steps=100)
     assert result.report.flags and result.report.flags[0].kind == "max_steps", str(result.report)
     assert result.report.n_checked == result.report.flags[0].index
+
+
+def test_check_starts_from_a_state_just_after_a_collision():
+    """The chaos-horizon perturbations must not push the end on the wall through it."""
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    after = jb.orbit(scene, jnp.array([0.03, -0.02, 0.4, 0.6, 0.25, 0.3]), 1).state[0]
+    result = jb.check(scene, after, 5)
+    assert result.report.agree
+    assert result.report.n_checked == 5
