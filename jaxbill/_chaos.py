@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._collision import _check_eagerly
+from ._collision import _check_eagerly, _poison_if
 from ._scene import Scene
 from ._stick_in_circle import StickInCircle
 from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
@@ -50,7 +50,8 @@ def _ftle_one(scene, state0, n, vector0):
 
     init = (state0, vector0, jnp.zeros(()), jnp.zeros(()))
     (_, _, log_growth, t), _ = jax.lax.scan(step, init, None, length=n)
-    return log_growth / t, log_growth / n, t
+    # Later states come from the map itself; only the start needs checking.
+    return _poison_if(~scene.is_valid(state0), log_growth / t, log_growth / n, t)
 
 
 @eqx.filter_jit
@@ -76,8 +77,8 @@ def finite_time_lyapunov(scene: Scene, states: jax.Array, n: int) -> FiniteTimeL
         n: number of collisions (Python int, static).
     """
     n = check_count("n", n, 1, "number of collisions")
+    _check_eagerly(scene, states)  # before any conversion: a bool or complex state is refused, not cast
     states = jnp.atleast_2d(jnp.asarray(states, jnp.float64))
-    _check_eagerly(scene, states)
     k = dynamical_size(scene)
     v0 = np.random.default_rng(7).standard_normal(k)
     return _ftle_jit(scene, states, n, jnp.asarray(v0 / np.linalg.norm(v0)))

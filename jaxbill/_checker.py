@@ -52,6 +52,7 @@ import optimistix as optx
 from ._collision import collide as _collide
 from ._collision import orbit as _orbit
 from ._stick_in_circle import StickInCircle
+from ._validation import MAX_STORED_COUNT, check_count
 
 __all__ = ["check", "CheckResult", "CheckReport", "CheckFlag"]
 
@@ -395,7 +396,14 @@ def check(
 
     Raises:
         NotImplementedError: for a batched scene or ``state0``.
+        ValueError: for ``n`` not a positive integer (at most ``2**31 - 1``),
+            a complex or non-numeric ``state0``, or an invalid ``state0`` (as
+            ``jb.orbit``).
     """
+    n = check_count("n", n, 1, "number of collisions", MAX_STORED_COUNT)
+    dtype = state0.dtype if hasattr(state0, "dtype") else np.asarray(state0).dtype
+    if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
+        raise ValueError(f"state0 must be real numbers; got dtype {dtype}")
     if not isinstance(scene, StickInCircle):
         # Imported here: the walls checker builds on this module's report types.
         from ._walls_checker import check_walls

@@ -7,7 +7,14 @@ import jax
 import jax.numpy as jnp
 
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
-from ._validation import check_orbit_length, check_state, is_concrete
+from ._validation import (
+    check_orbit_length,
+    check_state,
+    check_state_static,
+    check_unbatched_scene,
+    is_concrete,
+    require_x64,
+)
 
 CORNER = SEVERAL_CONTACTS  # the stick in a circle's name for it: both ends at once
 
@@ -104,19 +111,32 @@ def collide(scene: Scene, state: jax.Array):
 
     Invalid input inside ``jit`` (traced values cannot raise) poisons the
     result: ``new_state`` and ``dt`` are NaN and the contact is 0. This covers
-    non-finite states, an end outside the wall by more than ``1e-12 R^2`` in
-    the gap, invalid traced parameters, nonzero spin for the static lens, and
-    a root search that hit its step bound. Called with concrete values
-    (outside ``jit``), bad input raises ``ValueError`` instead.
+    non-finite states, velocities whose squares overflow or underflow, an end
+    outside the wall by more than ``1e-12 R^2`` in the gap or on it (gap
+    ``<= 0``) without moving inwards, invalid traced parameters, nonzero spin
+    for the static lens, and a root search that hit its step bound. Called with concrete values
+    (outside ``jit``), bad input raises ``ValueError`` instead. The shape and
+    dtype of ``state`` and an unbatched ``scene`` are checked under ``jit``
+    too (``ValueError``); ``RuntimeError`` if ``jax_enable_x64`` is off.
     """
-    _check_eagerly(scene, state)
+    _check_eagerly(scene, state, single=True)
     return _collide_jit(scene, jnp.asarray(state, dtype=jnp.float64))
 
 
 _collide_jit = eqx.filter_jit(_collide)
 
 
-def _check_eagerly(scene, state) -> None:
+def _check_eagerly(scene, state, *, single: bool = False) -> None:
+    """The checks at every public entry point, before anything is compiled.
+
+    Static ones (float64 on, the state's shape and dtype, one scene rather
+    than a batch of them) raise even at trace time, under ``jit``; the value
+    checks run only on concrete input (``jit``/``vmap`` poison with NaN).
+    ``single``: ``state`` must be one state ``(S,)``, not a batch ``(B, S)``.
+    """
+    require_x64()
+    check_unbatched_scene(scene)
+    check_state_static(scene, state, single=single)
     if all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
         scene.check()
         if is_concrete(state):
@@ -136,6 +156,9 @@ def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     _, (t, contact, states) = jax.lax.scan(step, (state0, jnp.zeros((), jnp.float64)), length=n)
     # Later states come from the map itself; only the start needs checking.
     t, contact, states = _poison_if(~scene.is_valid(state0), t, contact, states)
+    # After a root search that hit its step bound (t NaN from then on), the
+    # map runs on NaN states: their contacts mean nothing.
+    contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
     return Orbit(t=t, contact=contact, state=states)
 
 
@@ -173,10 +196,13 @@ def orbit(scene: Scene, state0: jax.Array, n: int) -> Orbit:
         None))`` gives orbit by orbit what single runs give.
 
     Raises:
-        ValueError: for ``n < 0`` or a bad ``state0`` (wrong shape, NaN/inf, an
-            end outside a wall or on it and moving outwards, spin for a stick
-            that cannot turn). Inside ``jit``/``vmap`` these checks cannot run; the
-            result is poisoned with NaN instead (see ``collide``).
+        ValueError: for ``n`` not an integer in ``[0, 2**31 - 1]``, a bad
+            ``state0`` (wrong shape or dtype, NaN/inf, velocities whose squares
+            overflow or underflow, an end outside a wall or on it and moving
+            outwards, spin for a stick that cannot turn) or a batch of scenes
+            (use ``jax.vmap``). Inside ``jit``/``vmap`` the value checks cannot
+            run; the result is poisoned with NaN instead (see ``collide``).
+        RuntimeError: with ``jax_enable_x64`` turned off.
     """
     n = check_orbit_length(n)
     _check_eagerly(scene, state0)

@@ -24,6 +24,8 @@ import numpy as np
 
 from ._first_root import first_root
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._validation import motion_is_representable as representable
+from ._validation import broadcast_parameters, on_wall_not_inwards, real_parameter
 
 FLOOR = 1  # contact code of end P1 on the floor (P2: -1)
 CEILING = 3  # contact code of end P1 on the ceiling (P2: -3)
@@ -50,7 +52,10 @@ def _check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -
 
 def checked_parameters(h, ell, mass, inertia):
     """Validate concrete parameters; return them broadcast to one shape, and the kind."""
-    h, ell, mass = (np.asarray(v, dtype=np.float64) for v in (h, ell, mass))
+    h, ell, mass = (real_parameter(name, v) for name, v in (("h", h), ("ell", ell), ("mass", mass)))
+    if inertia is not None:
+        inertia = real_parameter("inertia", inertia)
+    broadcast_parameters(h=h, ell=ell, mass=mass, inertia=inertia)
     for name, v in (("h", h), ("ell", ell), ("mass", mass)):
         _check_parameter(name, v, np.isfinite(v), "finite")
     _check_parameter("h", h, h > 0, "> 0 (the distance between the walls)")
@@ -59,7 +64,6 @@ def checked_parameters(h, ell, mass, inertia):
     if inertia is None:
         inertia = mass * ell**2
     else:
-        inertia = np.asarray(inertia, dtype=np.float64)
         _check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
         _check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for a stick that never turns)")
     static = bool(np.all(np.isinf(inertia)))
@@ -198,8 +202,17 @@ def finish_step(state, moved_and_kicked, t, contact, ok):
     new_state = jnp.where(reached, moved_and_kicked, state)
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
     new_state = jnp.where(ok, new_state, jnp.nan)
+    contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
     return new_state, jnp.where(ok, t, jnp.nan), contact
 
 
 def state_is_inside(scene, state) -> jax.Array:
-    return jnp.all(scene.gaps(state) >= -WALL_TOLERANCE * scene.h)
+    """No end through a wall by more than the tolerance, none on a wall and not moving away from it."""
+    gaps = scene.gaps(state)
+    inside = jnp.all(gaps >= -WALL_TOLERANCE * scene.h)
+    return inside & ~on_wall_not_inwards(gaps, scene.approach_speeds(state))
+
+
+def motion_is_representable(scene, v, w2, state) -> jax.Array:
+    """Traceable: velocities whose squares float64 represents (see ``jaxbill._validation``)."""
+    return representable(v, w2, scene.energy(state), jnp.maximum(scene.h, scene.ell))

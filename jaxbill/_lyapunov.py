@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import operator
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._collision import _check_eagerly
+from ._collision import _check_eagerly, _poison_if
 from ._scene import Scene
 from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from ._validation import MAX_STORED_COUNT, check_count
 
 PER = ("time", "collision")
 
@@ -96,6 +95,8 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0):
         exponents = logs / n
     history = -jnp.sort(-history, axis=1)
     exponents = -jnp.sort(-exponents)
+    # Later states come from the map itself; only the start needs checking.
+    exponents, history, t_hist, t = _poison_if(~scene.is_valid(state0), exponents, history, t_hist, t)
     return LyapunovSpectrum(
         exponents=exponents, history=history, collisions=counts, times=t_hist, time=t, n=n, per=per
     )
@@ -166,18 +167,11 @@ def lyapunov_spectrum(
     """
     if per not in PER:
         raise ValueError(f"per must be one of {PER}; got {per!r}")
-    try:
-        n = operator.index(n)
-        qr_every = operator.index(qr_every)
-        n_history = operator.index(n_history)
-    except TypeError:
-        raise ValueError("n, qr_every and n_history must be integers") from None
-    if qr_every < 1:
-        raise ValueError(f"qr_every must be >= 1; got {qr_every}")
+    n = check_count("n", n, 1, "number of collisions")
+    qr_every = check_count("qr_every", qr_every, 1, "collisions between QR factorisations")
+    n_history = check_count("n_history", n_history, 1, "checkpoints kept", MAX_STORED_COUNT)
     if n < qr_every or n % qr_every:
         raise ValueError(f"n must be a positive multiple of qr_every = {qr_every}; got {n}")
-    if n_history < 1:
-        raise ValueError(f"n_history must be >= 1; got {n_history}")
     _check_eagerly(scene, state0)
     n_dim = dynamical_size(scene)
     k = n_dim if per == "time" else n_dim - 1

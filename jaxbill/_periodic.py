@@ -89,7 +89,7 @@ from . import _periodic_walls as walls_orbits
 from ._collision import _check_eagerly, _collide
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from ._stick_in_circle import StickInCircle
-from ._validation import check_count
+from ._validation import MAX_STORED_COUNT, check_count, require_x64
 
 ELLIPTIC, PARABOLIC, HYPERBOLIC, INVERSE_HYPERBOLIC = 0, 1, 2, 3
 STABILITY_LABELS = ("elliptic", "parabolic", "hyperbolic", "inverse hyperbolic")
@@ -435,7 +435,7 @@ def _walls_periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, p
 
 
 def _check_period(period) -> int:
-    return check_count("period", period, 1, "collisions")
+    return check_count("period", period, 1, "collisions", MAX_STORED_COUNT)
 
 
 def _targets(scene, guess, energy, angular_momentum, rotation):
@@ -544,7 +544,7 @@ def find_periodic_orbit(
         a batch of guesses).
     """
     p = _check_period(period)
-    _check_eagerly(scene, guess)
+    _check_eagerly(scene, guess, single=True)
     guess = jnp.asarray(guess, jnp.float64)
     e, l0, theta, pin_l, pin_rotation = _targets(scene, guess, energy, angular_momentum, rotation)
     orbit, _ = _find_jit(scene, guess, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol)
@@ -605,11 +605,11 @@ def find_periodic_orbits(
         increasing order of period (time), then of trace.
     """
     p = _check_period(period)
-    guesses = jnp.asarray(guesses, jnp.float64)
     size = scene.state_size
-    if guesses.ndim != 2 or guesses.shape[1] != size:
-        raise ValueError(f"guesses must have shape (B, {size}); got {guesses.shape}")
+    if np.ndim(guesses) != 2 or np.shape(guesses)[1] != size:
+        raise ValueError(f"guesses must have shape (B, {size}); got {np.shape(guesses)}")
     _check_eagerly(scene, guesses)
+    guesses = jnp.asarray(guesses, jnp.float64)
     e, l0, theta, pin_l, pin_rotation = _targets(scene, guesses[0], energy, angular_momentum, rotation)
     b = guesses.shape[0]
     e = jnp.broadcast_to(e, (b,)) if energy is not None else scene.energy(guesses)
@@ -668,6 +668,7 @@ def continue_periodic_orbit(
         ``return_predictions``, the pair ``(orbits, predictions)``, the latter
         of shape ``(len(values), K)``.
     """
+    require_x64()
     if not isinstance(scene, StickInCircle):
         raise TypeError(f"continue_periodic_orbit takes a StickInCircle; got {type(scene).__name__}")
     if parameter not in ("ell", "R", "mass", "inertia"):

@@ -46,7 +46,15 @@ class Scene(Protocol):
         """Scene-specific eager checks of a finite float64 numpy state ``(..., state_size)``."""
 
     def is_valid(self, state: jax.Array) -> jax.Array:
-        """Traceable: parameters and ``state`` are a valid start (for NaN poisoning)."""
+        """Traceable: parameters and ``state`` are a valid start (for NaN poisoning).
+
+        The traceable twin of the eager checks: finite, motion representable,
+        no end through a wall by more than ``WALL_TOLERANCE``, none on a wall
+        (gap ``<= 0``) without moving away from it.
+        """
+
+    def motion_is_representable(self, state: jax.Array) -> jax.Array:
+        """Traceable ``(...)``: the velocities' squares and the energy are ordinary float64 numbers."""
 
     def orbit_constants(self, state0: jax.Array) -> Any:
         """Quantities fixed along an orbit from ``state0`` (a pytree, or None)."""
@@ -64,9 +72,16 @@ class Scene(Protocol):
         """Kinetic energy ``(...)``."""
 
 
+def _states(scene: Scene, state) -> jax.Array:
+    """``state`` as an array ``(..., S)``; ValueError for another last axis or a non-real dtype (static)."""
+    from ._validation import as_states  # noqa: PLC0415 (_validation imports this module)
+
+    return as_states(scene, state, "state")
+
+
 def energy(scene: Scene, state: jax.Array) -> jax.Array:
     """Kinetic energy of ``state`` (shape ``(..., S)``) in ``scene``: translation plus rotation."""
-    return scene.energy(jnp.asarray(state))
+    return scene.energy(_states(scene, state))
 
 
 def angular_momentum(scene: Scene, state: jax.Array) -> jax.Array:
@@ -78,9 +93,9 @@ def angular_momentum(scene: Scene, state: jax.Array) -> jax.Array:
     """
     if not hasattr(scene, "angular_momentum"):
         raise TypeError(f"{type(scene).__name__} has no conserved angular momentum")
-    return scene.angular_momentum(jnp.asarray(state))
+    return scene.angular_momentum(_states(scene, state))
 
 
 def end_points(scene: Scene, state: jax.Array) -> jax.Array:
     """Positions of the ends ``[P1, P2]``, shape ``(..., 2, D)`` (``D`` = 2 or 3)."""
-    return scene.end_points(jnp.asarray(state))
+    return scene.end_points(_states(scene, state))

@@ -98,6 +98,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._stick_in_circle import StickInCircle
+from ._validation import MAX_STORED_COUNT, as_states, check_count, require_x64
 
 
 def paper_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
@@ -115,7 +116,7 @@ def paper_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
     Returns:
         ``(..., 2)`` array ``[L_z, phi_c]``.
     """
-    states = jnp.asarray(states)
+    states = as_states(scene, states)
     x, y, vx, vy = states[..., 0], states[..., 1], states[..., 3], states[..., 4]
     px, py = scene.mass * vx, scene.mass * vy
     l_z = y * px - x * py
@@ -190,7 +191,7 @@ def reduced_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
     Returns:
         ``(..., 2)`` array ``[s, p]``.
     """
-    states = jnp.asarray(states)
+    states = as_states(scene, states)
     s, phi = _wall_coordinate(scene, states)
     v_t = _tangential_velocity(states, phi)
     p = jnp.sqrt(scene.mass) * v_t / jnp.sqrt(2.0 * scene.energy(states))
@@ -381,6 +382,9 @@ def section_seeds(scene: StickInCircle, count: int, energy=0.5, angular_momentum
     Returns:
         ``(count, 6)`` states from ``section_state`` (stick angle ``alpha = 0``).
     """
+    require_x64()
+    count = check_count("count", count, 0, "number of seeds", MAX_STORED_COUNT)
+    offset = check_count("offset", offset, 0, "first index of the Halton sequence", MAX_STORED_COUNT)
     length = float(wall_length(scene)) * (0.5 if half else 1.0)
     chosen_s, chosen_p = [], []
     start = offset

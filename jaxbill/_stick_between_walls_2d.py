@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _flat_walls as walls
+from ._validation import require_x64
 
 
 class StickBetweenWalls2D(eqx.Module):
@@ -61,6 +62,7 @@ class StickBetweenWalls2D(eqx.Module):
     wall_name: ClassVar[str] = "the walls"
 
     def __init__(self, h, ell, mass=1.0, inertia=None):
+        require_x64()  # float32 leaves would void every accuracy claim
         leaves = [h, ell, mass] + ([] if inertia is None else [inertia])
         if all(not isinstance(v, jax.core.Tracer) for v in leaves):
             h, ell, mass, inertia, kind = walls.checked_parameters(h, ell, mass, inertia)
@@ -96,10 +98,14 @@ class StickBetweenWalls2D(eqx.Module):
 
     def is_valid(self, state: jax.Array) -> jax.Array:
         ok = walls.parameters_are_valid(self.h, self.ell, self.mass, self.inertia, self.kind)
-        ok &= jnp.all(jnp.isfinite(state)) & walls.state_is_inside(self, state)
+        ok &= jnp.all(jnp.isfinite(state)) & self.motion_is_representable(state) & walls.state_is_inside(self, state)
         if self.kind == "static":
             ok &= state[5] == 0.0
         return ok
+
+    def motion_is_representable(self, state) -> jax.Array:
+        """Traceable: the velocities' squares and the energy are ordinary float64 numbers."""
+        return walls.motion_is_representable(self, state[..., 3:5], state[..., 5] ** 2, state)
 
     def orbit_constants(self, state0: jax.Array) -> None:
         return None

@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _flat_walls as walls
+from ._validation import require_x64
 
 # Tolerance on |u| = 1 and w . u = 0 in a given state (relative).
 UNIT_TOLERANCE = 1e-10
@@ -66,6 +67,7 @@ class StickBetweenWalls3D(eqx.Module):
     wall_name: ClassVar[str] = "the walls"
 
     def __init__(self, h, ell, mass=1.0, inertia=None):
+        require_x64()  # float32 leaves would void every accuracy claim
         leaves = [h, ell, mass] + ([] if inertia is None else [inertia])
         if all(not isinstance(v, jax.core.Tracer) for v in leaves):
             h, ell, mass, inertia, kind = walls.checked_parameters(h, ell, mass, inertia)
@@ -110,13 +112,17 @@ class StickBetweenWalls3D(eqx.Module):
 
     def is_valid(self, state: jax.Array) -> jax.Array:
         ok = walls.parameters_are_valid(self.h, self.ell, self.mass, self.inertia, self.kind)
-        ok &= jnp.all(jnp.isfinite(state)) & walls.state_is_inside(self, state)
+        ok &= jnp.all(jnp.isfinite(state)) & self.motion_is_representable(state) & walls.state_is_inside(self, state)
         u, w = state[3:6], state[9:12]
         ok &= jnp.abs(jnp.linalg.norm(u) - 1.0) <= UNIT_TOLERANCE
         ok &= jnp.abs(u @ w) <= UNIT_TOLERANCE * jnp.maximum(jnp.linalg.norm(w), 1.0)
         if self.kind == "static":
             ok &= jnp.all(w == 0.0)
         return ok
+
+    def motion_is_representable(self, state) -> jax.Array:
+        """Traceable: the velocities' squares and the energy are ordinary float64 numbers."""
+        return walls.motion_is_representable(self, state[..., 6:9], jnp.sum(state[..., 9:12] ** 2, axis=-1), state)
 
     def orbit_constants(self, state0: jax.Array) -> None:
         return None

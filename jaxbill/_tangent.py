@@ -55,8 +55,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ._collision import _collide
+from ._collision import _collide, step_function
 from ._scene import Scene
+from ._validation import check_state_static, check_unbatched_scene, require_x64
 
 
 def dynamical_indices(scene: Scene) -> tuple[int, ...]:
@@ -153,7 +154,11 @@ def _map_with_time(scene: Scene, state: jax.Array):
 
 
 def _map_with_contact(scene: Scene, state: jax.Array):
-    new_state, dt, contact = _collide(scene, state)
+    # The map itself, unchecked: push_forward carries states the map produced
+    # (its callers check the start once, as jb.orbit does). Checking each one
+    # as a start would poison the rare states the map leaves mid-corner (an
+    # end still approaching its wall, resolved by a collision with dt = 0).
+    new_state, dt, contact = step_function(scene, state)(state)
     return (new_state, dt), contact
 
 
@@ -162,7 +167,8 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
 
     Args:
         scene: any scene.
-        state: shape ``(S,)``.
+        state: shape ``(S,)``, from the map itself or a start already checked
+            (``scene.is_valid``): it is not checked here.
         vectors: tangent vectors as columns, shape ``(S, k)``.
         flow: ``True`` for the fixed-time flow tangent, ``False`` for the
             Jacobian of the collision map (see the module docstring).
@@ -208,7 +214,9 @@ def tangent_map(scene: Scene, state: jax.Array, *, flow: bool = False, mode: str
         ``new_state`` (6,), ``dt`` (), ``contact`` () int32 and the ``(6, 6)``
         Jacobian, rows = output coordinates, columns = input coordinates
         (``(S,)`` and ``(S, S)`` in general).
-        Invalid input poisons everything with NaN (see ``collide``).
+        Invalid input poisons everything with NaN (see ``collide``), the
+        Jacobian included; a wrong shape or dtype of ``state`` or a batch of
+        scenes (use ``jax.vmap``) raises ``ValueError``.
 
     Works under ``jit`` and ``vmap``. At a corner (contact ``2``) or a grazing
     contact the map is not differentiable and the result is meaningless.
@@ -221,10 +229,16 @@ def tangent_map(scene: Scene, state: jax.Array, *, flow: bool = False, mode: str
     """
     if mode not in ("forward", "reverse"):
         raise ValueError(f"mode must be 'forward' or 'reverse'; got {mode!r}")
+    require_x64()
+    check_unbatched_scene(scene)
+    check_state_static(scene, state, single=True)
     state = jnp.asarray(state, dtype=jnp.float64)
     jac = jax.jacfwd if mode == "forward" else jax.jacrev
     new_state, dt, contact = _collide(scene, state)
     d_state, d_time = jac(lambda s: _map_with_time(scene, s))(state)
     if flow:
         d_state = d_state - jnp.outer(scene.phase_velocity(new_state), d_time)
+    # The map is poisoned where the input is invalid (or its search failed);
+    # its derivative through jnp.where would be a plausible matrix of zeros.
+    d_state = jnp.where(jnp.isnan(dt), jnp.nan, d_state)
     return new_state, dt, contact, d_state

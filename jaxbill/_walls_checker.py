@@ -123,6 +123,7 @@ from ._checker import CheckFlag, CheckReport, CheckResult
 from ._collision import orbit as _orbit
 from ._stick_between_walls_2d import StickBetweenWalls2D
 from ._stick_between_walls_3d import StickBetweenWalls3D
+from ._validation import MAX_STORED_COUNT, check_count
 
 __all__ = ["check_walls"]
 
@@ -633,8 +634,12 @@ def check_walls(
     start = time.perf_counter()
     if not isinstance(scene, (StickBetweenWalls2D, StickBetweenWalls3D)):
         raise TypeError(f"check_walls takes a StickBetweenWalls2D or 3D, not {type(scene).__name__}")
+    n = check_count("n", n, 1, "number of collisions", MAX_STORED_COUNT)
     planar_scene = isinstance(scene, StickBetweenWalls2D)
     size = 6 if planar_scene else 12
+    dtype = state0.dtype if hasattr(state0, "dtype") else np.asarray(state0).dtype
+    if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
+        raise ValueError(f"state0 must be real numbers; got dtype {dtype}")
     state0 = np.asarray(state0, dtype=np.float64)
     if state0.shape != (size,) or np.ndim(scene.h) != 0:
         raise NotImplementedError(f"check_walls takes one scene and one state0 of shape ({size},); loop over a batch")

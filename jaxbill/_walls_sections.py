@@ -98,6 +98,7 @@ import numpy as np
 
 from ._collision import orbit as _orbit
 from ._sections import _halton
+from ._validation import MAX_STORED_COUNT, as_states, check_count, require_x64
 
 # Floor gaps below this many units of h count as "on the floor" in a contact 2.
 _ON_WALL = 1e-9
@@ -190,7 +191,7 @@ def floor_section(scene, states: jax.Array, contacts: jax.Array) -> jax.Array:
     _check_turning(scene)
     if _is_3d(scene):
         raise ValueError("floor_section is for StickBetweenWalls2D; use reduced_wall_section in 3D")
-    states = jnp.asarray(states)
+    states = as_states(scene, states)
     theta, vz, omega = states[..., 2], states[..., 4], states[..., 5]
     heights = scene.gaps(states)[..., :2]
     end, floor = _floor_end(scene, contacts, heights)
@@ -229,7 +230,7 @@ def reduced_wall_section(scene, states: jax.Array, contacts: jax.Array) -> jax.A
     _check_turning(scene)
     if not _is_3d(scene):
         raise ValueError("reduced_wall_section is for StickBetweenWalls3D; use floor_section in 2D")
-    states = jnp.asarray(states)
+    states = as_states(scene, states)
     theta, sin, rate = _polar_rate(states)
     heights = scene.gaps(states)[..., :2]
     end, floor = _floor_end(scene, contacts, heights)
@@ -336,6 +337,9 @@ def floor_seed_points(scene, count: int, energy=0.5, spin=0.0, *, offset: int = 
     where ``|p| < floor_section_bound(scene, theta, energy, spin)``. Returns
     two NumPy arrays ``(count,)``.
     """
+    require_x64()
+    count = check_count("count", count, 0, "number of seeds", MAX_STORED_COUNT)
+    offset = check_count("offset", offset, 0, "first index of the Halton sequence", MAX_STORED_COUNT)
     top = float(np.sqrt(1.0 + float(scene.ell) ** 2 * float(scene.mass) / float(scene.inertia)))
     chosen_theta, chosen_p = [], []
     start = offset

@@ -232,8 +232,16 @@ def test_chaotic_orbit_fills_an_area(fig2_orbits):
     half = points[points[:, 0] < float(wall_length(ROTOR)) / 2]
     assert _closed_curve_residual(half) > 0.02
     assert curve_thickness(points) > 0.4
-    # ... and it covers far more of the section than the regular one
-    assert covered_fraction(ROTOR, points) > 5 * covered_fraction(ROTOR, fig2_orbits[0])
+    # ... and it covers far more of the section than the regular one. Which
+    # cells a chaotic orbit has visited after n collisions depends on its
+    # rounding (twins 1e-15 apart part within a few dozen collisions): after
+    # 4000 collisions 64 such twins cover 4.2 to 5.8 times the regular curve's
+    # cells, so the factor 5 held or failed by chance. After 32000 they
+    # cover 6.0 to 9.8 times as much (the regular curve's cover is saturated
+    # at 4000); the claim is checked there.
+    chaotic0 = section_state(ROTOR, jnp.array(0.05), jnp.array(0.9), 0.5, 0.0)  # fig2_orbits' second
+    long_run = np.asarray(reduced_section(ROTOR, jb.orbit(ROTOR, chaotic0, 32000).state))
+    assert covered_fraction(ROTOR, long_run) > 5 * covered_fraction(ROTOR, fig2_orbits[0])
 
 
 def test_curve_thickness_on_synthetic_shapes():
