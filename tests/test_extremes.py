@@ -37,8 +37,8 @@ runs) and asserts, with the bounds stated here once:
   I omega``) change by at most ``1e-13`` (relative to ``E``, resp. to
   ``R sqrt(2 M E) + max |I omega|``, the largest ``|L|`` the orbit can reach)
   at any collision, and drift by at most half an ulp per collision over the run.
-  The 1e7-collision test holds the energy to the README's stated ``1e-17`` per
-  collision.
+  The 1e7-collision test holds the energy to a random walk of rounding errors,
+  ``10 eps sqrt(n)`` (the README: no systematic drift).
 
 Cost and accuracy reached per case are reported in the README table, not
 asserted here (no timed assertions).
@@ -572,10 +572,11 @@ def test_long_run_drift_and_escape(kind, n):
       input). For the lens that bounds whole flights, since ``|P_k|^2`` is
       convex along a straight flight; never a NaN, a missing contact, or a
       flight of zero length (the stick sticking to the wall).
-    * drift: ``|E - E0| / E0 <= 1e-17 n``, the README's figure ("Energy drifts
-      by about 1e-17 per collision"): random rounding grows like ``sqrt(n)``
-      (about 1e-12 here), so only a systematic bias can reach the bound.
-      For the spinning stick ``L`` too, relative to its scale.
+    * drift: ``|E - E0| / E0 <= 10 eps sqrt(n)``: unbiased rounding of a few
+      ulps per collision is a random walk that stays below it; a bias of
+      even 0.01 ulp per collision (1e-10 after 1e7: the impulse's rounding at
+      ``R = 2`` before it was fixed gave 5e-10) does not. For the spinning
+      stick ``L`` too, relative to its scale.
     """
     if kind == "lens":
         scene = jb.StickInCircle(R=R, ell=1.5, inertia=INF)
@@ -589,11 +590,12 @@ def test_long_run_drift_and_escape(kind, n):
     assert float(gmin) >= -WALL_TOL * R * R, f"an end went {-float(gmin):.3g} outside the wall"
     E0 = float(jb.energy(scene, s0))
     drift = float(dE) / E0
-    assert drift <= 1e-17 * n, f"energy drifted by {drift:.3g} over {n} collisions ({drift / n:.2g} per collision)"
+    random_walk = 10 * EPS * math.sqrt(n)
+    assert drift <= random_walk, f"energy drifted by {drift:.3g} over {n} collisions ({drift / n:.2g} per collision)"
     if kind == "rotor":
         _, L_scale = invariant_scales(scene, np.asarray(s0), np.asarray(s0)[None])
         L_scale = max(L_scale, R * math.sqrt(2 * E0) + math.sqrt(2 * float(scene.inertia) * E0))
-        assert float(dL) / L_scale <= 1e-17 * n, f"L drifted by {float(dL) / L_scale:.3g}"
+        assert float(dL) / L_scale <= random_walk, f"L drifted by {float(dL) / L_scale:.3g}"
 
 
 # ---------------------------------------------------------------------------
