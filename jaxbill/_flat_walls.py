@@ -163,7 +163,9 @@ def _turning_contact_time_jvp(primals, tangents):
 
 def straight_contact_time(gaps: jax.Array, closing_speeds: jax.Array):
     """First contact when every gap is linear in time: ``(t, gap index, ok)``."""
-    times = jnp.where(closing_speeds > 0.0, jnp.maximum(gaps, 0.0) / jnp.where(closing_speeds > 0.0, closing_speeds, 1.0), jnp.inf)
+    closing = closing_speeds > 0.0
+    safe_speeds = jnp.where(closing, closing_speeds, 1.0)
+    times = jnp.where(closing, jnp.maximum(gaps, 0.0) / safe_speeds, jnp.inf)
     index = jnp.argmin(times)
     return times[index], index, jnp.array(True)
 
