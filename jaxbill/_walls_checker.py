@@ -61,7 +61,7 @@ mass-weighted coordinates ``Q = (sqrt(M) z, sqrt(I) psi)``, a specular
 reflection of ``Q'`` about ``grad_Q g`` (computed here with ``jax.grad``).
 For ``g = z + e ell cos psi`` this is ``dz' = -2 w_end / (M (1/M + ell^2
 sin^2 psi / I))`` with ``w_end = z' - e ell sin psi psi'``: the impulse of
-WALLS.md, which this module never uses. A stick with ``I = inf`` keeps
+the scenes' ``kick``, which this module never uses. A stick with ``I = inf`` keeps
 ``psi' = 0`` (the ``psi`` part of the normal is dropped).
 
 What is certified

@@ -179,7 +179,7 @@ def state3d(c, u, v, a):
 
 
 def embed_2d(state):
-    """WALLS.md embedding of a 2D state in the x-z plane (float64, sin/cos rounded)."""
+    """The documented embedding of a 2D state in the x-z plane (float64, sin/cos rounded)."""
     x, z, th, vx, vz, om = state
     return [x, 0.0, z, math.sin(th), 0.0, math.cos(th), vx, 0.0, vz, 0.0, om, 0.0]
 
@@ -290,7 +290,7 @@ CASES = [
                          "d(depth) / sqrt(2 |g''| depth), a condition number ~3e3 at the first "
                          "collision, amplified by the chaos that follows"),
     # =============================== 3D ===============================
-    # zero vertical angular velocity in the x-z plane: the 2D case under the WALLS.md embedding
+    # zero vertical angular velocity in the x-z plane: the 2D case under the documented embedding
     dict(name="3D/xz_plane_generic_a", kind="3D", h=3.0, ell=1.0, mass=1.0, inertia=None,
          state0=embed_2d(GENERIC_2D)),
     # L_z != 0: curved flights of the reduced billiard

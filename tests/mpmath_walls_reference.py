@@ -1,7 +1,8 @@
 """Independent high-precision reference for the stick between two flat walls (2D and 3D).
 
-Written with mpmath only, from the physics (``/work/WALLS.md`` conventions,
-``physics.md`` "Stick between two flat walls"), without any jaxbill code, so
+Written with mpmath only, from the physics (the state layouts and contact
+codes of the README's "The stick between two flat walls", the laws derived
+below), without any jaxbill code, so
 that the library's tests compare against something that can fail differently.
 
 Model
@@ -44,7 +45,7 @@ The metric is ``diag(M, M, M, I, I, I)`` on ``(v, w)``; ``r x zhat`` is
 perpendicular to ``u``, so ``w . u = 0`` is kept. The reflection gives
 ``J = -2 w_end / (1/M + |r x zhat|^2 / I)``, ``w_end = v_z + (w x r)_z``,
 ``v' = v + (J/M) zhat``, ``w' = w + (J/I) (r x zhat)``, and again
-``w_end' = -w_end``. (These agree with ``/work/WALLS.md``.)
+``w_end' = -w_end``.
 
 Root isolation (rigorous stepping)
 ----------------------------------

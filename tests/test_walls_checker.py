@@ -38,7 +38,7 @@ def _state3(c, u, v, w):
 
 
 def _xz(x, z, th, vx, vz, om):
-    """The 2D state [x, z, th, vx, vz, om] embedded in the x-z plane (WALLS.md)."""
+    """The 2D state [x, z, th, vx, vz, om] embedded in the x-z plane (the embedding in ``StickBetweenWalls3D``'s docstring)."""
     return np.array([x, 0.0, z, math.sin(th), 0.0, math.cos(th), vx, 0.0, vz, 0.0, om, 0.0])
 
 
@@ -151,7 +151,7 @@ def test_the_potential_is_what_curves_the_flight():
 @pytest.mark.parametrize("gap", [0, 1, 2, 3])
 def test_mass_weighted_reflection_is_the_impulse_law(gap):
     """Reflection about grad g in Q = (sqrt(M) z, sqrt(I) psi) equals the rigid-body
-    impulse of WALLS.md (scene.kick), L_spin and phi' untouched."""
+    impulse of scene.kick, L_spin and phi' untouched."""
     h, ell, mass, inertia = 3.0, 1.0, 0.7, 0.3
     scene = jb.StickBetweenWalls3D(h=h, ell=ell, mass=mass, inertia=inertia)
     e = 1.0 if gap in (0, 2) else -1.0  # P1 or P2

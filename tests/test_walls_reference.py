@@ -155,7 +155,7 @@ def test_cached_orbit_conserves_and_touches(name):
                 assert abs(s[11] - s0[11]) <= mpf("1e-22") * W, j
                 assert abs(s[3] ** 2 + s[4] ** 2 + s[5] ** 2 - 1) <= mpf("1e-22"), j
                 assert abs(s[3] * s[9] + s[4] * s[10] + s[5] * s[11]) <= mpf("1e-22") * W, j
-            # contact geometry, computed here from the layout in WALLS.md
+            # contact geometry, computed here from the documented layout
             if kind == "2D":
                 zk = {e: s[1] + e * ellm * mpmath.cos(s[2]) for e in (1, -1)}
                 wk = {e: s[4] - e * ellm * mpmath.sin(s[2]) * s[5] for e in (1, -1)}
@@ -494,7 +494,7 @@ def test_reference_kink_closed_forms():
 
 @pytest.mark.parametrize("name", ["2D/generic_a", "2D/h_just_below_2ell", "2D/kink_rotating", "2D/graze_miss_1e-9"])
 def test_reference_3d_embedding_equals_2d(name):
-    """WALLS.md's embedding [x, 0, z, sin th, 0, cos th, vx, 0, vz, 0, omega, 0]
+    """The documented embedding [x, 0, z, sin th, 0, cos th, vx, 0, vz, 0, omega, 0]
     (in mpf) runs the 3D reference along the 2D reference's orbit."""
     c = DATA[name]
     _, h, ell, mass, inertia = _args(c)
@@ -649,10 +649,9 @@ def test_cache_reproduces_from_generator(name):
 # jaxbill against the reference
 # ---------------------------------------------------------------------------
 def _scene(c):
-    jb = pytest.importorskip("jaxbill")
-    cls = getattr(jb, SCENE_CLASS[c["kind"]], None)
-    if cls is None:
-        pytest.skip(f"jaxbill has no {SCENE_CLASS[c['kind']]} yet")
+    import jaxbill as jb  # here, not at the top: the reference's own tests need no JAX
+
+    cls = getattr(jb, SCENE_CLASS[c["kind"]])
     return jb, cls(c["h"], c["ell"], mass=c["mass"], inertia=_inertia(c))
 
 
