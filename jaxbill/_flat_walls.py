@@ -18,6 +18,8 @@ from both walls, so the search jumps over that stretch of the flight.
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -25,7 +27,7 @@ import numpy as np
 from ._first_root import first_root
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
 from ._validation import motion_is_representable as representable
-from ._validation import broadcast_parameters, on_wall_not_inwards, real_parameter
+from ._validation import broadcast_parameters, check_parameter, is_concrete, on_wall_not_inwards, real_parameter
 
 FLOOR = 1  # contact code of end P1 on the floor (P2: -1)
 CEILING = 3  # contact code of end P1 on the ceiling (P2: -3)
@@ -44,11 +46,6 @@ MAX_ROOT_STEPS = 4096
 _BATCH_CHUNK = {"rotor": 64, "static": 256}
 
 
-def _check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
-    if not np.all(ok):
-        bad = value[~ok] if value.ndim else value
-        raise ValueError(f"{name} must be {valid}; got {bad.ravel()[:4].tolist()}")
-
 
 def checked_parameters(h, ell, mass, inertia):
     """Validate concrete parameters; return them broadcast to one shape, and the kind."""
@@ -57,19 +54,48 @@ def checked_parameters(h, ell, mass, inertia):
         inertia = real_parameter("inertia", inertia)
     broadcast_parameters(h=h, ell=ell, mass=mass, inertia=inertia)
     for name, v in (("h", h), ("ell", ell), ("mass", mass)):
-        _check_parameter(name, v, np.isfinite(v), "finite")
-    _check_parameter("h", h, h > 0, "> 0 (the distance between the walls)")
-    _check_parameter("ell", ell, ell > 0, "> 0 (the stick's half-length)")
-    _check_parameter("mass", mass, mass > 0, "> 0")
+        check_parameter(name, v, np.isfinite(v), "finite")
+    check_parameter("h", h, h > 0, "> 0 (the distance between the walls)")
+    check_parameter("ell", ell, ell > 0, "> 0 (the stick's half-length)")
+    check_parameter("mass", mass, mass > 0, "> 0")
     if inertia is None:
         inertia = mass * ell**2
     else:
-        _check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
-        _check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for a stick that never turns)")
+        check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
+        check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for a stick that never turns)")
     static = bool(np.all(np.isinf(inertia)))
     if not static and np.any(np.isinf(inertia)):
         raise ValueError("inertia must be all finite or all inf within one batch of scenes")
     return (*np.broadcast_arrays(h, ell, mass, inertia), "static" if static else "rotor")
+
+
+def scene_leaves(h, ell, mass, inertia):
+    """``(h, ell, mass, inertia, kind)`` for a wall scene's constructor, the leaves as float64 arrays.
+
+    Concrete parameters are checked here; traced ones (a scene built inside
+    ``jit``) cannot be, and invalid values poison the results with NaN instead.
+    """
+    leaves = [h, ell, mass] + ([] if inertia is None else [inertia])
+    if all(is_concrete(v) for v in leaves):
+        h, ell, mass, inertia, kind = checked_parameters(h, ell, mass, inertia)
+    else:
+        inertia = mass * ell**2 if inertia is None else inertia
+        kind = "static" if isinstance(inertia, float) and math.isinf(inertia) else "rotor"
+    return (*(jnp.asarray(v, dtype=jnp.float64) for v in (h, ell, mass, inertia)), kind)
+
+
+def check_scene(scene) -> None:
+    """ValueError if a wall scene's (possibly replaced) parameters are invalid or change its ``kind``."""
+    *_, kind = checked_parameters(scene.h, scene.ell, scene.mass, scene.inertia)
+    if kind != scene.kind:
+        raise ValueError(f"the parameters describe a {kind!r} scene, not {scene.kind!r}: build a new scene")
+
+
+def check_batch_of_states(scene, state: np.ndarray) -> None:
+    """ValueError unless a batch of scenes comes with a batch of states of the same size."""
+    h = np.asarray(scene.h)
+    if h.ndim and state.ndim == 2 and h.shape[0] != state.shape[0]:
+        raise ValueError(f"a batch of {h.shape[0]} scenes needs a batch of {h.shape[0]} states; got {state.shape[0]}")
 
 
 def parameters_are_valid(h, ell, mass, inertia, kind: str) -> jax.Array:

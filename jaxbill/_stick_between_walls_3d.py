@@ -24,7 +24,6 @@ A stick moving in the ``x``-``z`` plane, ``[x, 0, z, sin th, 0, cos th, vx,
 
 from __future__ import annotations
 
-import math
 from typing import ClassVar
 
 import equinox as eqx
@@ -68,20 +67,11 @@ class StickBetweenWalls3D(eqx.Module):
 
     def __init__(self, h, ell, mass=1.0, inertia=None):
         require_x64()  # float32 leaves would void every accuracy claim
-        leaves = [h, ell, mass] + ([] if inertia is None else [inertia])
-        if all(not isinstance(v, jax.core.Tracer) for v in leaves):
-            h, ell, mass, inertia, kind = walls.checked_parameters(h, ell, mass, inertia)
-        else:
-            inertia = mass * ell**2 if inertia is None else inertia
-            kind = "static" if isinstance(inertia, float) and math.isinf(inertia) else "rotor"
-        self.h, self.ell, self.mass, self.inertia = (jnp.asarray(v, dtype=jnp.float64) for v in (h, ell, mass, inertia))
-        self.kind = kind
+        self.h, self.ell, self.mass, self.inertia, self.kind = walls.scene_leaves(h, ell, mass, inertia)
 
     def check(self) -> None:
         """Raise ValueError if the (possibly replaced) parameters are invalid or change ``kind``."""
-        *_, kind = walls.checked_parameters(self.h, self.ell, self.mass, self.inertia)
-        if kind != self.kind:
-            raise ValueError(f"the parameters describe a {kind!r} scene, not {self.kind!r}: build a new scene")
+        walls.check_scene(self)
 
     # -- engine interface (jaxbill._scene) --------------------------------------
 
@@ -94,9 +84,7 @@ class StickBetweenWalls3D(eqx.Module):
         return self.h
 
     def check_state_values(self, state: np.ndarray) -> None:
-        h = np.asarray(self.h)
-        if h.ndim and state.ndim == 2 and h.shape[0] != state.shape[0]:
-            raise ValueError(f"a batch of {h.shape[0]} scenes needs a batch of {h.shape[0]} states; got {state.shape[0]}")
+        walls.check_batch_of_states(self, state)
         u, w = state[..., 3:6], state[..., 9:12]
         norm = np.linalg.norm(u, axis=-1)
         if np.any(np.abs(norm - 1.0) > UNIT_TOLERANCE):

@@ -24,6 +24,8 @@ from ._first_root import first_root
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
 from ._validation import (
     broadcast_parameters,
+    check_parameter,
+    is_concrete,
     motion_is_representable,
     on_wall_not_inwards,
     real_parameter,
@@ -52,14 +54,6 @@ KINDS = ("rotor", "lens", "circle")
 _KICK_DENOMINATOR = math.pi / 2
 
 
-def _is_concrete(x) -> bool:
-    return not isinstance(x, jax.core.Tracer)
-
-
-def _check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
-    if not np.all(ok):
-        bad = value[~ok] if value.ndim else value
-        raise ValueError(f"{name} must be {valid}; got {bad.ravel()[:4].tolist()}")
 
 
 def _checked_parameters(R, ell, mass, inertia):
@@ -69,21 +63,21 @@ def _checked_parameters(R, ell, mass, inertia):
         inertia = real_parameter("inertia", inertia)
     broadcast_parameters(R=R, ell=ell, mass=mass, inertia=inertia)
     for name, v in (("R", R), ("ell", ell), ("mass", mass)):
-        _check_parameter(name, v, np.isfinite(v), "finite")
-    _check_parameter("R", R, R > 0, "> 0")
-    _check_parameter("ell", ell, ell >= 0, ">= 0")
-    _check_parameter("ell", ell, ell < R, "< R (the stick must fit inside the circle)")
-    _check_parameter("mass", mass, mass > 0, "> 0")
+        check_parameter(name, v, np.isfinite(v), "finite")
+    check_parameter("R", R, R > 0, "> 0")
+    check_parameter("ell", ell, ell >= 0, ">= 0")
+    check_parameter("ell", ell, ell < R, "< R (the stick must fit inside the circle)")
+    check_parameter("mass", mass, mass > 0, "> 0")
     circle = bool(np.all(ell == 0))
     if not circle and np.any(ell == 0):
         raise ValueError("ell must be all zero or all positive within one batch of scenes")
     if inertia is None:
         inertia = mass * ell**2
     else:
-        _check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
+        check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
         # The circle's spin is a free rotor, but its energy still counts: its
         # inertia must be valid too.
-        _check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for the static lens)")
+        check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for the static lens)")
     lens = (not circle) and bool(np.all(np.isinf(inertia)))
     if not circle and not lens and np.any(np.isinf(inertia)):
         raise ValueError("inertia must be all finite or all inf within one batch of scenes")
@@ -128,7 +122,7 @@ class StickInCircle(eqx.Module):
     def __init__(self, R, ell, mass=1.0, inertia=None, *, kind: str | None = None):
         require_x64()  # float32 leaves would void every accuracy claim
         leaves = [R, ell, mass] + ([] if inertia is None else [inertia])
-        if all(_is_concrete(v) for v in leaves):
+        if all(is_concrete(v) for v in leaves):
             R, ell, mass, inertia, guessed = _checked_parameters(R, ell, mass, inertia)
         else:
             # Traced parameters (a scene built inside jit): values cannot be
@@ -152,7 +146,7 @@ class StickInCircle(eqx.Module):
         """
         # The circle's default inertia, M ell^2 = 0, is stored as 0 (its spin
         # weighs nothing); given explicitly, an inertia must be > 0.
-        default = self.kind == "circle" and _is_concrete(self.inertia) and np.all(np.asarray(self.inertia) == 0)
+        default = self.kind == "circle" and is_concrete(self.inertia) and np.all(np.asarray(self.inertia) == 0)
         *_, kind = _checked_parameters(self.R, self.ell, self.mass, None if default else self.inertia)
         if kind != self.kind:
             raise ValueError(

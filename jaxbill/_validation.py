@@ -27,6 +27,13 @@ def is_concrete(x) -> bool:
     return not isinstance(x, jax.core.Tracer)
 
 
+def check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
+    """ValueError naming ``name``, its valid range and (up to 4) offending values, unless ``ok`` everywhere."""
+    if not np.all(ok):
+        bad = value[~ok] if value.ndim else value
+        raise ValueError(f"{name} must be {valid}; got {bad.ravel()[:4].tolist()}")
+
+
 def require_x64() -> None:
     """RuntimeError unless JAX computes in float64 (``jax_enable_x64``).
 
