@@ -325,6 +325,33 @@ def _scaled_deviation(a, b, scales):
     )
 
 
+def _comparison_report(n, contact, ref_contact, horizon, tol, dev, local_max, local_bad, flags, n_steps, start):
+    """The ``CheckReport`` of a checker run: ``dev`` holds the scaled deviations
+    ``(m, 5)`` of its first ``m = min(collisions checked, horizon)`` collisions."""
+    m = len(dev)
+    maxima = dev.max(axis=0) if m else np.zeros(5)
+    return CheckReport(
+        n=n,
+        n_checked=len(contact),
+        horizon=horizon,
+        n_compared=m,
+        tol=tol,
+        max_time=float(maxima[0]),
+        max_position=float(maxima[1]),
+        max_angle=float(maxima[2]),
+        max_velocity=float(maxima[3]),
+        max_spin=float(maxima[4]),
+        first_contact_mismatch=_first(contact[:m] != ref_contact[:m]),
+        first_deviation=_first(np.any(dev > tol, axis=1)),
+        local_max_time=float(local_max[0]),
+        local_max_state=float(local_max[1:].max()),
+        local_first_mismatch=_first(local_bad),
+        flags=tuple(flags),
+        n_steps=n_steps,
+        seconds=time.perf_counter() - start,
+    )
+
+
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
@@ -525,7 +552,6 @@ def check(
 
     m = min(len(t), horizon)
     dev = _scaled_deviation((t[:m], state[:m]), (ref_t[:m], ref_s[:m]), scales)
-    maxima = dev.max(axis=0) if m else np.zeros(5)
     # One collision at a time: jb.collide from each checker state (chaos-free).
     starts = np.concatenate([state0[None], state[:-1]]) if len(t) else np.zeros((0, 6))
     if len(t):
@@ -536,24 +562,5 @@ def check(
         local_max = local.max(axis=0)
     else:
         local_bad, local_max = np.zeros(0, bool), np.zeros(5)
-    report = CheckReport(
-        n=n,
-        n_checked=len(t),
-        horizon=horizon,
-        n_compared=m,
-        tol=tol,
-        max_time=float(maxima[0]),
-        max_position=float(maxima[1]),
-        max_angle=float(maxima[2]),
-        max_velocity=float(maxima[3]),
-        max_spin=float(maxima[4]),
-        first_contact_mismatch=_first(contact[:m] != ref_c[:m]),
-        first_deviation=_first(np.any(dev > tol, axis=1)),
-        local_max_time=float(local_max[0]),
-        local_max_state=float(local_max[1:].max()),
-        local_first_mismatch=_first(local_bad),
-        flags=tuple(flags),
-        n_steps=total_steps,
-        seconds=time.perf_counter() - start,
-    )
+    report = _comparison_report(n, contact, ref_c, horizon, tol, dev, local_max, local_bad, flags, total_steps, start)
     return CheckResult(t=t, contact=contact, state=state, orbit=reference, report=report)

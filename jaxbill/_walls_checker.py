@@ -119,7 +119,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ._checker import CheckFlag, CheckReport, CheckResult
+from ._checker import CheckFlag, CheckResult, _certified_positive, _comparison_report, _first, _wrap
 from ._collision import orbit as _orbit
 from ._stick_between_walls_2d import StickBetweenWalls2D
 from ._stick_between_walls_3d import StickBetweenWalls3D
@@ -197,20 +197,6 @@ class _Reduced(eqx.Module):
 
 def _vector_field(t, y, core):
     return core.field(y)
-
-
-def _certified_positive(f0, p0, f1, p1, h, K):
-    """True where ``f > 0`` on the open step ``(0, h)`` is proven from end values,
-    end slopes and ``|f''| <= K`` (Taylor bounds from both ends, then the
-    interpolation bound ``f >= lin - K s (h - s) / 2`` on what is left)."""
-    K = jnp.maximum(K, 1e-300)
-    sL = jnp.where(f0 >= 0.0, (p0 + jnp.sqrt(jnp.maximum(p0 * p0 + 2.0 * K * f0, 0.0))) / K, 0.0)
-    sR = jnp.where(f1 >= 0.0, (-p1 + jnp.sqrt(jnp.maximum(p1 * p1 + 2.0 * K * f1, 0.0))) / K, 0.0)
-    covered = sL + sR > h
-    lo, hi = jnp.minimum(sL, h), jnp.maximum(h - sR, 0.0)
-    s = jnp.clip(0.5 * h - (f1 - f0) / (K * h), lo, hi)
-    interp = f0 + (f1 - f0) * s / h - 0.5 * K * s * (h - s)
-    return (f0 >= 0.0) & (f1 >= 0.0) & (covered | ((interp > 0.0) & (h > 0.0)) | (h == 0.0))
 
 
 @eqx.filter_jit
@@ -347,10 +333,6 @@ def _land(core: _Reduced, y_s, tau0, k_index, dtmax, solver, rtol, atol, corner_
 # ---------------------------------------------------------------------------
 # scene states <-> the reduced state
 # ---------------------------------------------------------------------------
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
-
 def _from_3d(s: np.ndarray, inertia: float, frozen: bool):
     """``[x, y, z, u, v, w]`` -> ``(y, vxy, L_spin, sin_psi_min)``."""
     u, v, w = s[3:6], s[6:9], s[9:12]
@@ -535,11 +517,6 @@ def _scaled_deviation(a, b, scales, planar_scene: bool):
         ],
         axis=1,
     )
-
-
-def _first(mask):
-    idx = np.flatnonzero(mask)
-    return int(idx[0]) if idx.size else None
 
 
 def _perturbations(state0: np.ndarray, planar_scene: bool, eps, scales) -> np.ndarray:
@@ -746,26 +723,6 @@ def check_walls(
 
     m = min(len(t), horizon)
     dev = _scaled_deviation((t[:m], state[:m]), (ref_t[:m], ref_s[:m]), scales, planar_scene)
-    maxima = dev.max(axis=0) if m else np.zeros(5)
 
-    report = CheckReport(
-        n=n,
-        n_checked=len(t),
-        horizon=horizon,
-        n_compared=m,
-        tol=tol,
-        max_time=float(maxima[0]),
-        max_position=float(maxima[1]),
-        max_angle=float(maxima[2]),
-        max_velocity=float(maxima[3]),
-        max_spin=float(maxima[4]),
-        first_contact_mismatch=_first(contact[:m] != ref_c[:m]),
-        first_deviation=_first(np.any(dev > tol, axis=1)),
-        local_max_time=float(local_max[0]),
-        local_max_state=float(local_max[1:].max()),
-        local_first_mismatch=_first(local_bad),
-        flags=tuple(flags),
-        n_steps=total_steps,
-        seconds=time.perf_counter() - start,
-    )
+    report = _comparison_report(n, contact, ref_c, horizon, tol, dev, local_max, local_bad, flags, total_steps, start)
     return CheckResult(t=t, contact=contact, state=state, orbit=reference, report=report)
