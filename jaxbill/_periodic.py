@@ -86,6 +86,7 @@ import numpy as np
 import optimistix as optx
 
 from . import _periodic_walls as walls_orbits
+from ._periodic_walls import wrap_angle as _wrap
 from ._collision import _check_eagerly, _collide
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from ._stick_in_circle import StickInCircle
@@ -99,11 +100,6 @@ _TWO_PI = 2.0 * math.pi
 # A solution with a flight shorter than this (in units of R / speed) slides
 # along the wall (a grazing limit) and is not reported as converged.
 _MIN_FLIGHT = 1e-6
-
-
-def _wrap(angle):
-    """Into ``[-pi, pi)``."""
-    return jnp.remainder(angle + jnp.pi, _TWO_PI) - jnp.pi
 
 
 def _rotate(vec, angle):

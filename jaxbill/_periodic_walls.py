@@ -71,7 +71,8 @@ _TWO_PI = 2.0 * jnp.pi
 _MIN_FLIGHT = 1e-6
 
 
-def _wrap(angle):
+def wrap_angle(angle):
+    """Into ``[-pi, pi)`` (also used by ``jaxbill._periodic``)."""
     return jnp.remainder(angle + jnp.pi, _TWO_PI) - jnp.pi
 
 
@@ -177,7 +178,7 @@ class WallsProblem(eqx.Module):
         if scene.kind == "static":
             theta, vz, omega = base[2], xi[0], jnp.zeros(())
         else:
-            theta, vz, omega = _wrap(xi[0]), xi[1], xi[2]
+            theta, vz, omega = wrap_angle(xi[0]), xi[1], xi[2]
         z = wall - end * scene.ell * jnp.cos(theta)
         return jnp.stack([base[0], z, theta, base[3], vz, omega])
 
@@ -230,7 +231,7 @@ class WallsProblem(eqx.Module):
             speed = jnp.sqrt(2.0 * self.vertical_energy() / scene.mass)
             spin = scales[-1] if scene.kind == "rotor" else jnp.ones(())
             unit = jnp.stack([scene.h, jnp.ones(()), speed, spin])
-            diff = diff.at[1].set(_wrap(diff[1]))
+            diff = diff.at[1].set(wrap_angle(diff[1]))
         parts = [diff / unit, ((scene.energy(s0) - self.energy) / self.vertical_energy())[None]]
         if self.has_rotation:
             # The pins are traced flags (one compilation for every choice): an
@@ -238,7 +239,7 @@ class WallsProblem(eqx.Module):
             momentum = scene.inertia * scales[-3]
             l_residual = (scene.angular_momentum(s0) - self.angular_momentum) / momentum
             parts.append(jnp.where(self.pin_l, l_residual, 0.0)[None])
-            parts.append(jnp.where(self.pin_rotation, _wrap(psi - self.rotation), 0.0)[None])
+            parts.append(jnp.where(self.pin_rotation, wrap_angle(psi - self.rotation), 0.0)[None])
         return jnp.concatenate(parts)
 
 
