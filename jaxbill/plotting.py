@@ -133,6 +133,20 @@ def _end_points(scene, states):
     return np.stack([c + ell * u, c - ell * u], axis=-2)
 
 
+def _orbits_and_colors(points, colors):
+    """Section points as ``(B, n, 2)`` and one colour per orbit (``colors``: None, one colour, or a list)."""
+    pts = _np(points)
+    if pts.ndim == 2:
+        pts = pts[None]
+    if pts.ndim != 3 or pts.shape[-1] != 2:
+        raise ValueError(f"points must have shape (n, 2) or (B, n, 2); got {np.shape(points)}")
+    if colors is None:
+        colors = orbit_colors(len(pts))
+    elif isinstance(colors, str) or (np.ndim(colors) == 1 and len(colors) in (3, 4) and not isinstance(colors[0], str)):
+        colors = [colors] * len(pts)
+    return pts, colors
+
+
 def draw_section(
     ax,
     points,
@@ -160,15 +174,7 @@ def draw_section(
     """
     if kind not in _SECTION_LABELS:
         raise ValueError(f"kind must be one of {tuple(_SECTION_LABELS)}; got {kind!r}")
-    pts = _np(points)
-    if pts.ndim == 2:
-        pts = pts[None]
-    if pts.ndim != 3 or pts.shape[-1] != 2:
-        raise ValueError(f"points must have shape (n, 2) or (B, n, 2); got {np.shape(points)}")
-    if colors is None:
-        colors = orbit_colors(len(pts))
-    elif isinstance(colors, str) or (np.ndim(colors) == 1 and len(colors) in (3, 4) and not isinstance(colors[0], str)):
-        colors = [colors] * len(pts)
+    pts, colors = _orbits_and_colors(points, colors)
     for i, orbit_points in enumerate(pts):
         if kind == "paper":
             x, y = orbit_points[:, 1], orbit_points[:, 0]
@@ -439,15 +445,7 @@ def draw_floor_section(ax, points, kind: str = "2d", *, colors=None, markersize:
     """
     if kind not in _FLOOR_SECTION_LABELS:
         raise ValueError(f"kind must be one of {tuple(_FLOOR_SECTION_LABELS)}; got {kind!r}")
-    pts = _np(points)
-    if pts.ndim == 2:
-        pts = pts[None]
-    if pts.ndim != 3 or pts.shape[-1] != 2:
-        raise ValueError(f"points must have shape (n, 2) or (B, n, 2); got {np.shape(points)}")
-    if colors is None:
-        colors = orbit_colors(len(pts))
-    elif isinstance(colors, str) or (np.ndim(colors) == 1 and len(colors) in (3, 4) and not isinstance(colors[0], str)):
-        colors = [colors] * len(pts)
+    pts, colors = _orbits_and_colors(points, colors)
     for i, orbit_points in enumerate(pts):
         ok = np.all(np.isfinite(orbit_points), axis=-1)
         ax.plot(orbit_points[ok, 0], orbit_points[ok, 1], linestyle="none", marker=".", markersize=markersize,
