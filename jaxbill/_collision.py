@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
+from ._step import advance
 from ._validation import (
     check_orbit_length,
     check_state,
@@ -45,7 +46,7 @@ def step_function(scene: Scene, state0: jax.Array):
     Quantities the scene holds fixed along an orbit are computed here once.
     """
     constants = scene.orbit_constants(state0)
-    return lambda state: scene.advance(state, constants)
+    return lambda state: advance(scene, state, constants)
 
 
 def _poison_if(bad, *arrays):

@@ -35,7 +35,7 @@ The loop is bounded by ``max_steps``; a search that hits the bound reports it
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -75,12 +75,66 @@ def _safe_steps(g, slope, lower_curv, upper_curv):
     return s_lo, s_hi
 
 
+class RootBounds(NamedTuple):
+    """What the safe-step search needs to know of one flight, fixed along it.
+
+    Attributes:
+        lower_curv: bound ``>= -g_k''(t)`` for all k and all t up to the root.
+        upper_curv: bound ``>= g_k''(t)`` likewise.
+        quiet_in, quiet_out: a time interval in which no gap can vanish (empty
+            when ``quiet_in >= quiet_out``); the search jumps over it. A search
+            with ``quiet_out = inf`` that reaches it finds no root.
+        time_scale: a characteristic flight time; the root is resolved to a few
+            ulps of ``max(t, time_scale)``.
+    """
+
+    lower_curv: jax.Array
+    upper_curv: jax.Array
+    quiet_in: jax.Array
+    quiet_out: jax.Array
+    time_scale: jax.Array
+
+
+def search_start(bounds: RootBounds) -> jax.Array:
+    """Where the search starts: 0, or the end of a quiet interval that holds 0 (``inf``: no root ever)."""
+    return jnp.where((bounds.quiet_in <= 0.0) & (bounds.quiet_out > 0.0), bounds.quiet_out, 0.0)
+
+
+def root_step(gap: jax.Array, slope: jax.Array, bounds: RootBounds, t: jax.Array):
+    """One safe step of the search from time ``t``, given the gaps ``(K,)`` and slopes there.
+
+    Returns ``(t_next, index, done)``: the next time (which cannot pass the
+    first root of any gap), the gap it approaches (or the one touching now),
+    and whether the search is over: a root at ``t_next`` (touching now, or
+    bracketed to the time resolution) or a hopeless lane (non-finite values,
+    which end at once rather than make a batch wait out the step bound).
+
+    Both drivers of the engine (``jaxbill._lanes``) and ``first_root`` take
+    exactly this step, so every path finds the same root in the same steps.
+    """
+    eps = jnp.finfo(jnp.float64).eps
+    g = jnp.maximum(gap, 0.0)
+    touching = (g == 0.0) & (slope < 0.0)
+    s_lo, s_hi = _safe_steps(g, slope, bounds.lower_curv, bounds.upper_curv)
+    index = jnp.argmin(s_lo)
+    s = s_lo[index]
+    t_next = t + s
+    # A safe step that lands in the quiet interval may jump to its end.
+    t_next = jnp.where((t_next >= bounds.quiet_in) & (t_next < bounds.quiet_out), bounds.quiet_out, t_next)
+    resolution = _TIME_RESOLUTION_ULPS * eps * jnp.maximum(t, bounds.time_scale)
+    # Bracketed to the resolution, or a step below one ulp of t on a
+    # falling gap: either way the root is known as well as t can hold it.
+    converged = ((s_hi[index] - s) <= resolution) | ((t_next == t) & (slope[index] < 0.0))
+    touching_now = jnp.any(touching)
+    index = jnp.where(touching_now, jnp.argmax(touching), index)
+    t_next = jnp.where(touching_now, t, t_next)
+    hopeless = ~jnp.isfinite(t_next) | ~jnp.all(jnp.isfinite(gap) & jnp.isfinite(slope))
+    return t_next, index.astype(jnp.int32), touching_now | converged | hopeless
+
+
 def first_root(
     gaps_and_slopes: Callable[[jax.Array], tuple[jax.Array, jax.Array]],
-    lower_curv: jax.Array,
-    upper_curv: jax.Array,
-    quiet: tuple[jax.Array, jax.Array],
-    time_scale: jax.Array,
+    bounds: RootBounds,
     max_steps: int,
 ):
     """First time ``t >= 0`` at which one of K gaps reaches zero while falling.
@@ -88,13 +142,7 @@ def first_root(
     Args:
         gaps_and_slopes: ``t -> (g, dg)``, each of shape ``(K,)``: the gaps and
             their time derivatives at time ``t``.
-        lower_curv: bound ``>= -g_k''(t)`` for all k and all t up to the root.
-        upper_curv: bound ``>= g_k''(t)`` likewise.
-        quiet: ``(t_in, t_out)``, a time interval in which no gap can vanish
-            (empty when ``t_in >= t_out``); the search jumps over it. A search
-            with ``t_out = inf`` that reaches it finds no root.
-        time_scale: a characteristic flight time; the root is resolved to a few
-            ulps of ``max(t, time_scale)``.
+        bounds: the flight's curvature bounds, quiet interval and time scale.
         max_steps: static bound on the number of steps.
 
     Returns:
@@ -102,7 +150,6 @@ def first_root(
         vanishes), the index of the gap that vanishes, the number of steps
         taken, and ``ok = False`` when the step bound was hit first.
     """
-    eps = jnp.finfo(jnp.float64).eps
 
     def step(carry):
         t, _, _, steps = carry
@@ -110,32 +157,14 @@ def first_root(
         # each fusion that uses them, contracting to FMA differently, so that
         # the same gap could test as touching in one place and not in another.
         gap, slope = jax.lax.optimization_barrier(gaps_and_slopes(t))
-        g = jnp.maximum(gap, 0.0)
-        touching = (g == 0.0) & (slope < 0.0)
-        s_lo, s_hi = _safe_steps(g, slope, lower_curv, upper_curv)
-        index = jnp.argmin(s_lo)
-        s = s_lo[index]
-        t_next = t + s
-        # A safe step that lands in the quiet interval may jump to its end.
-        t_next = jnp.where((t_next >= quiet[0]) & (t_next < quiet[1]), quiet[1], t_next)
-        resolution = _TIME_RESOLUTION_ULPS * eps * jnp.maximum(t, time_scale)
-        # Bracketed to the resolution, or a step below one ulp of t on a
-        # falling gap: either way the root is known as well as t can hold it.
-        converged = ((s_hi[index] - s) <= resolution) | ((t_next == t) & (slope[index] < 0.0))
-        touching_now = jnp.any(touching)
-        index = jnp.where(touching_now, jnp.argmax(touching), index)
-        t_next = jnp.where(touching_now, t, t_next)
-        # Non-finite input (a poisoned lane) ends at once rather than making a
-        # whole vmapped batch wait out the step bound.
-        hopeless = ~jnp.isfinite(t_next) | ~jnp.all(jnp.isfinite(gap) & jnp.isfinite(slope))
-        done = touching_now | converged | hopeless
+        t_next, index, done = root_step(gap, slope, bounds, t)
         return t_next, index, done, steps + 1
 
     def keep_going(carry):
         _, _, done, steps = carry
         return (~done) & (steps < max_steps)
 
-    t_start = jnp.where((quiet[0] <= 0.0) & (quiet[1] > 0.0), quiet[1], 0.0)
-    init = (t_start, jnp.array(0), jnp.isinf(t_start), jnp.array(0))
+    t_start = search_start(bounds)
+    init = (t_start, jnp.int32(0), jnp.isinf(t_start), jnp.int32(0))
     t, index, done, steps = jax.lax.while_loop(keep_going, step, init)
     return t, index, steps, done

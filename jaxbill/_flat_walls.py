@@ -24,8 +24,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import first_root
-from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._first_root import RootBounds
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
 from ._validation import motion_is_representable as representable
 from ._validation import broadcast_parameters, check_parameter, is_concrete, on_wall_not_inwards, real_parameter
 
@@ -39,9 +39,6 @@ _CONTACT_CODES = (FLOOR, -FLOOR, CEILING, -CEILING)
 # Two gaps within this many ulps of h at one contact touch at the same instant
 # (the stick landing flat: a kink of the (theta, z) billiard's wall).
 _CORNER_ULPS = 64.0
-
-# Static bound on root-search steps per collision.
-MAX_ROOT_STEPS = 4096
 
 _BATCH_CHUNK = {"rotor": 64, "static": 256}
 
@@ -152,7 +149,8 @@ def _band_crossing(z0, vz, low, high):
     return jnp.where(no_band, jnp.inf, t_in), jnp.where(no_band, -jnp.inf, t_out)
 
 
-def _search(profile):
+def search_bounds(profile) -> RootBounds:
+    """The safe-step search's bounds for the flight with this vertical profile."""
     z0, vz, along, turn_rate, spin2, ell, h = profile
     eps = jnp.finfo(jnp.float64).eps
     # amp bounds |a(t)| for all t (<= 1 for a unit vector), padded for rounding.
@@ -161,39 +159,18 @@ def _search(profile):
     amp = jnp.minimum(amp * (1.0 + 8.0 * eps), 1.0)
     reach = ell * amp
     curvature = reach * spin2
-    quiet = _band_crossing(z0, vz, reach, h - reach)
+    quiet_in, quiet_out = _band_crossing(z0, vz, reach, h - reach)
     time_scale = 1.0 / (jnp.abs(vz) / h + jnp.sqrt(spin2))
-    return first_root(lambda t: gaps_along_flight(profile, t), curvature, curvature, quiet, time_scale, MAX_ROOT_STEPS)
-
-
-@jax.custom_jvp
-def turning_contact_time(profile):
-    """First contact of a turning stick: ``(t, gap index, ok)`` (``t = inf``: never)."""
-    t, index, _, ok = _search(profile)
-    return t, index, ok
-
-
-@turning_contact_time.defjvp
-def _turning_contact_time_jvp(primals, tangents):
-    # Implicit differentiation of g_k(t*; profile) = 0, as for the stick in a circle.
-    (profile,) = primals
-    t, index, ok = turning_contact_time(profile)
-    finite = jnp.isfinite(t)
-    t_safe = jnp.where(finite, t, 0.0)
-    _, gap_tangent = jax.jvp(lambda p: gaps_along_flight(p, t_safe)[0][index], primals, tangents)
-    slope = gaps_along_flight(profile, t_safe)[1][index]
-    t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
-    zero = np.zeros((), dtype=jax.dtypes.float0)
-    return (t, index, ok), (t_tangent, zero, zero)
+    return RootBounds(curvature, curvature, quiet_in, quiet_out, time_scale)
 
 
 def straight_contact_time(gaps: jax.Array, closing_speeds: jax.Array):
-    """First contact when every gap is linear in time: ``(t, gap index, ok)``."""
+    """First contact when every gap is linear in time: ``(t, gap index)``."""
     closing = closing_speeds > 0.0
     safe_speeds = jnp.where(closing, closing_speeds, 1.0)
     times = jnp.where(closing, jnp.maximum(gaps, 0.0) / safe_speeds, jnp.inf)
     index = jnp.argmin(times)
-    return times[index], index, jnp.array(True)
+    return times[index], index
 
 
 # -- contacts -------------------------------------------------------------------
@@ -222,16 +199,6 @@ def resolve_contact(scene, state: jax.Array, index: jax.Array):
     codes = jnp.asarray(_CONTACT_CODES, dtype=jnp.int32)
     contact = jnp.where(several, jnp.int32(SEVERAL_CONTACTS), codes[index])
     return state, contact
-
-
-def finish_step(state, moved_and_kicked, t, contact, ok):
-    """The step's result: unchanged for a flight that never ends, NaN for a failed search."""
-    reached = jnp.isfinite(t)
-    new_state = jnp.where(reached, moved_and_kicked, state)
-    contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
-    new_state = jnp.where(ok, new_state, jnp.nan)
-    contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
-    return new_state, jnp.where(ok, t, jnp.nan), contact
 
 
 def state_is_inside(scene, state) -> jax.Array:

@@ -59,8 +59,25 @@ class Scene(Protocol):
     def orbit_constants(self, state0: jax.Array) -> Any:
         """Quantities fixed along an orbit from ``state0`` (a pytree, or None)."""
 
-    def advance(self, state: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array, jax.Array]:
-        """``(new_state, dt, contact)``: the flight to the next collision and its impulse."""
+    # How a collision is computed (see jaxbill._step): a scene whose gaps are
+    # transcendental in time answers root_search and gaps_along_flight, one
+    # whose gaps are polynomials answers closed_form_contact; both collide_at.
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """Static: the contact time needs the safe-step root search (else a closed form)."""
+
+    def root_search(self, state: jax.Array) -> tuple[Any, Any]:
+        """``(profile, RootBounds)``: what the gaps depend on along the flight, and the search's bounds."""
+
+    def gaps_along_flight(self, profile: Any, t: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """``(gap, slope)``, each ``(K,)``: the gaps and their time derivatives after a flight of ``t``."""
+
+    def closed_form_contact(self, state: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array]:
+        """``(t, index)``: the contact time (``inf``: never) and which gap closes."""
+
+    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array]:
+        """``(state, contact)``: the flight to ``t`` and the impulse(s) of the contact in gap ``index``."""
 
     def gaps(self, state: jax.Array) -> jax.Array:
         """Contact gaps ``(..., K)``, >= 0 inside."""

@@ -97,15 +97,29 @@ class StickBetweenWalls2D(eqx.Module):
     def orbit_constants(self, state0: jax.Array) -> None:
         return None
 
-    def advance(self, state: jax.Array, constants: None = None):
-        """Flight to the next contact and its impulse, for a state known to be valid."""
-        if self.kind == "static":
-            t, index, ok = walls.straight_contact_time(self.gaps(state), self.approach_speeds(state))
-        else:
-            t, index, ok = walls.turning_contact_time(self.vertical_profile(state))
-        moved = self.flight(state, jnp.where(jnp.isfinite(t), t, 0.0))
-        kicked, contact = walls.resolve_contact(self, moved, index)
-        return walls.finish_step(state, kicked, t, contact, ok)
+    # -- the engine's questions (see jaxbill._step) -------------------------------
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """A turning stick's end heights are sinusoids; a static one's are lines (closed form)."""
+        return self.kind == "rotor"
+
+    def root_search(self, state: jax.Array):
+        """``(vertical profile, RootBounds)`` of the flight from ``state``."""
+        profile = self.vertical_profile(state)
+        return profile, walls.search_bounds(profile)
+
+    def gaps_along_flight(self, profile, t: jax.Array):
+        """The four gaps and their time derivatives after a flight of ``t``, each ``(4,)``."""
+        return walls.gaps_along_flight(profile, t)
+
+    def closed_form_contact(self, state: jax.Array, constants: None = None):
+        """``(t, index)`` for a stick that never turns: every gap is linear in time."""
+        return walls.straight_contact_time(self.gaps(state), self.approach_speeds(state))
+
+    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, constants: None = None):
+        """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``jaxbill._flat_walls``)."""
+        return walls.resolve_contact(self, self.flight(state, t), index)
 
     # -- geometry and flight -------------------------------------------------------
 

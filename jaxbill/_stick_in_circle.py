@@ -20,8 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import first_root
-from ._scene import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._first_root import RootBounds
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
 from ._validation import (
     broadcast_parameters,
     check_parameter,
@@ -42,10 +42,6 @@ _CORNER_ULPS = 64.0
 # a vmapped root search waits for its slowest lane, so smaller chunks wait less,
 # and a chunk's working set stays in cache (see benchmarks/bench_collisions.py).
 _BATCH_CHUNK = {"rotor": 64, "lens": 256, "circle": 256}
-
-# Static bound on root-finder steps per collision. Typical collisions take a
-# handful; a grazing departure can take a few hundred.
-MAX_ROOT_STEPS = 4096
 
 KINDS = ("rotor", "lens", "circle")
 
@@ -207,29 +203,53 @@ class StickInCircle(eqx.Module):
         """The static lens never turns: its direction ``u`` serves a whole orbit."""
         return self.direction(state0) if self.kind == "lens" else None
 
-    def advance(self, state: jax.Array, lens_direction: jax.Array | None = None):
-        """Flight to the next contact and its impulse, for a state known to be valid."""
+    # -- the engine's questions (see jaxbill._step) -----------------------------
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """A spinning stick's gaps are transcendental in time; the lens's and the circle's are quadratics."""
+        return self.kind == "rotor"
+
+    def root_search(self, state: jax.Array):
+        """``(profile, RootBounds)`` of the flight from ``state`` (the profile is the state itself)."""
+        return state, _rotor_bounds(self, state)
+
+    def gaps_along_flight(self, state: jax.Array, t: jax.Array):
+        """Both ends' gaps and their time derivatives after a flight of ``t``, each ``(2,)``."""
+        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
+        cx, cy = x + vx * t, y + vy * t
+        phi = alpha + omega * t
+        cu, su = jnp.cos(phi), jnp.sin(phi)
+        centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
+        centre_slope = -2.0 * (cx * vx + cy * vy)
+        along = cx * cu + cy * su
+        along_slope = vx * cu + vy * su + omega * (cy * cu - cx * su)
+        ends = jnp.asarray(_ENDS)
+        gap = centre_gap - 2.0 * self.ell * ends * along
+        slope = centre_slope - 2.0 * self.ell * ends * along_slope
+        return gap, slope
+
+    def closed_form_contact(self, state: jax.Array, lens_direction: jax.Array | None):
+        """``(t, index)`` for the lens and the circle: each end (the centre) moves on a line."""
+        c, v = state[0:2], state[3:5]
+        if self.kind == "circle":
+            return _exit_time(c, v, self.R), jnp.int32(0)
+        u = self.direction(state) if lens_direction is None else lens_direction
+        times = jnp.stack([_exit_time(ends, v, self.R) for ends in self.end_points(state, u)])
+        index = jnp.argmin(times)
+        return times[index], index
+
+    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, lens_direction: jax.Array | None):
+        """The flight to ``t`` and the impulse(s) of end ``index`` (0: P1, 1: P2) touching the wall."""
+        moved = self.flight(state, t)
         if self.kind == "rotor":
-            # The root search evaluates the turning stick itself; u is needed
+            # The root search evaluated the turning stick itself; u is needed
             # only at the contact.
-            t, index, ok = self.next_contact(state)
-            reached = jnp.isfinite(t)
-            moved = self.flight(state, jnp.where(reached, t, 0.0))
             u = self.direction(moved)
         else:
             # The lens never turns and the circle ignores u: one u serves throughout.
             u = lens_direction if lens_direction is not None else self.direction(state)
-            t, index, ok = self.next_contact(state, u)
-            reached = jnp.isfinite(t)
-            moved = self.flight(state, jnp.where(reached, t, 0.0))
-        kicked, contact = self._resolve_contact(moved, index, u)
-        new_state = jnp.where(reached, kicked, state)
-        contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
-        # A root search that hit its step bound proved nothing: poison the result.
-        new_state = jnp.where(ok, new_state, jnp.nan)
-        t = jnp.where(ok, t, jnp.nan)
-        contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
-        return new_state, t, contact
+        return self._resolve_contact(moved, index, u)
 
     def _resolve_contact(self, state: jax.Array, index: jax.Array, u: jax.Array):
         """Apply the impulse at the touching end; a simultaneous second contact too."""
@@ -354,41 +374,6 @@ class StickInCircle(eqx.Module):
         change = 2.0 * v_n / (nx * nx + ny * ny + ratio * (s * s))
         return jnp.stack([x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s])
 
-    # -- collision times --------------------------------------------------------
-
-    def next_contact(self, state: jax.Array, u: jax.Array | None = None):
-        """Time to the next contact and which end makes it.
-
-        Returns ``(t, index, ok)``: ``t`` is ``inf`` when no end ever reaches
-        the wall; ``index`` 0 is P1 and 1 is P2 (for the circle, 0); ``ok`` is
-        False if the root finder hit its step bound.
-        """
-        if self.kind == "rotor":
-            t, index, ok = _rotor_contact_time(self, state)
-            return t, index, ok
-        c = state[0:2]
-        v = state[3:5]
-        if self.kind == "circle":
-            return _exit_time(c, v, self.R), jnp.array(0), jnp.array(True)
-        times = jnp.stack([_exit_time(ends, v, self.R) for ends in self.end_points(state, u)])
-        index = jnp.argmin(times)
-        return times[index], index, jnp.array(True)
-
-    def _rotor_gaps(self, state: jax.Array, t: jax.Array):
-        """Both ends' gaps and their time derivatives after a flight of ``t``."""
-        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
-        cx, cy = x + vx * t, y + vy * t
-        phi = alpha + omega * t
-        cu, su = jnp.cos(phi), jnp.sin(phi)
-        centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
-        centre_slope = -2.0 * (cx * vx + cy * vy)
-        along = cx * cu + cy * su
-        along_slope = vx * cu + vy * su + omega * (cy * cu - cx * su)
-        ends = jnp.asarray(_ENDS)
-        gap = centre_gap - 2.0 * self.ell * ends * along
-        slope = centre_slope - 2.0 * self.ell * ends * along_slope
-        return gap, slope
-
     # -- invariants ---------------------------------------------------------------
 
     def energy(self, state: jax.Array) -> jax.Array:
@@ -483,7 +468,7 @@ def _disc_crossing(p: jax.Array, v: jax.Array, radius: jax.Array):
     return t_in, t_out
 
 
-def _rotor_search(scene: StickInCircle, state: jax.Array):
+def _rotor_bounds(scene: StickInCircle, state: jax.Array) -> RootBounds:
     c, v, omega = state[0:2], state[3:5], state[5]
     speed = jnp.linalg.norm(v)
     spin = jnp.abs(omega)
@@ -491,7 +476,7 @@ def _rotor_search(scene: StickInCircle, state: jax.Array):
     # quiet interval); before the first contact the centre stays within
     # sqrt(R^2 - ell^2).
     centre_radius = jnp.linalg.norm(c)
-    quiet = _disc_crossing(c, v, scene.R - scene.ell)
+    quiet_in, quiet_out = _disc_crossing(c, v, scene.R - scene.ell)
     reach = jnp.maximum(jnp.sqrt(scene.R**2 - scene.ell**2), centre_radius)
     # g_k'' = -2|v|^2 - 2 k ell W'' with |W''| <= 2 |omega| |v| + omega^2 |c(t)|.
     wobble = 2.0 * scene.ell * (2.0 * spin * speed + spin * spin * reach)
@@ -500,39 +485,4 @@ def _rotor_search(scene: StickInCircle, state: jax.Array):
     # Resolve the root finely enough for both the position (|v| dt << R) and
     # the angle (|omega| dt << 1 rad, whatever ell is).
     time_scale = 1.0 / (speed / scene.R + spin)
-    return first_root(
-        lambda t: scene._rotor_gaps(state, t),
-        lower_curv,
-        upper_curv,
-        quiet,
-        time_scale,
-        MAX_ROOT_STEPS,
-    )
-
-
-@jax.custom_jvp
-def _rotor_contact_time(scene: StickInCircle, state: jax.Array):
-    t, index, _, ok = _rotor_search(scene, state)
-    return t, index, ok
-
-
-@_rotor_contact_time.defjvp
-def _rotor_contact_time_jvp(primals, tangents):
-    # Implicit differentiation of g_k(t*; scene, state) = 0: the derivative of
-    # the root comes from the gap at the root, never from the search iterations.
-    scene, state = primals
-    t, index, ok = _rotor_contact_time(scene, state)
-    finite = jnp.isfinite(t)
-    t_safe = jnp.where(finite, t, 0.0)
-
-    def gap_at_root(scene_, state_):
-        gap, _ = scene_._rotor_gaps(state_, t_safe)
-        return gap[index]
-
-    _, gap_tangent = jax.jvp(gap_at_root, primals, tangents)
-    _, slope = scene._rotor_gaps(state, t_safe)
-    slope = slope[index]
-    t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
-    zero = np.zeros((), dtype=jax.dtypes.float0)
-    return (t, index, ok), (t_tangent, zero, zero)
-
+    return RootBounds(lower_curv, upper_curv, quiet_in, quiet_out, time_scale)

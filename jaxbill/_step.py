@@ -1,0 +1,180 @@
+"""One collision of any scene, built from the scene's own pieces: the reference every driver runs.
+
+A scene answers four questions about one orbit (all pure, traceable functions
+of one orbit's values; see ``jaxbill._scene.Scene``):
+
+* ``scene.root_search(state) -> (profile, RootBounds)``: for a scene whose gaps
+  are transcendental in time (a turning stick), what its gaps depend on along
+  the flight from ``state`` and the bounds the safe-step search needs;
+* ``scene.gaps_along_flight(profile, t) -> (gap, slope)``: the gaps ``(K,)``
+  and their time derivatives after a flight of ``t``;
+* ``scene.closed_form_contact(state, constants) -> (t, index)``: for a scene
+  whose gaps are polynomials in time (a static body, a point), the contact
+  time directly;
+* ``scene.collide_at(state, t, index, constants) -> (state, contact)``: the
+  flight to ``t`` and the impulse(s) of the contact in gap ``index``.
+
+``scene.searches_for_roots`` (static) says which of the two contact-time paths
+the scene takes, so a scene compiles only what it needs.
+
+Two ways to run these pieces share them unchanged:
+
+* ``advance``: one whole collision (the search as a ``while_loop``), with the
+  contact time differentiated implicitly. ``jb.collide``, single orbits and the
+  tangent maps use it.
+* the lane state machine: ``search_step`` takes one root step of a lane's
+  search, and ``end_and_begin`` ends a lane's flight whose contact was found
+  (the impulse) and begins the next (``begin_flight``). A batch of orbits
+  advances in one loop of these two moves in which no orbit waits for
+  another. The XLA driver (``jaxbill._lanes``) and the Pallas kernel
+  (``jaxbill._pallas``) run it.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._first_root import RootBounds, first_root, root_step, search_start
+from ._scene import NO_CONTACT
+
+# Static bound on root-search steps per collision. Typical collisions take a
+# handful; a grazing departure can take a few hundred.
+MAX_ROOT_STEPS = 4096
+
+
+def finish_step(state, moved_and_kicked, t, contact, ok):
+    """A collision's result: unchanged for a flight that never ends, NaN for a failed search."""
+    reached = jnp.isfinite(t)
+    new_state = jnp.where(reached, moved_and_kicked, state)
+    contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
+    new_state = jnp.where(ok, new_state, jnp.nan)
+    contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
+    return new_state, jnp.where(ok, t, jnp.nan), contact
+
+
+# -- one whole collision ------------------------------------------------------------
+
+
+@jax.custom_jvp
+def searched_contact_time(scene, state):
+    """First contact of a turning body: ``(t, gap index, ok)`` (``t = inf``: never; ``ok``: within the step bound)."""
+    profile, bounds = scene.root_search(state)
+    t, index, _, ok = first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, MAX_ROOT_STEPS)
+    return t, index, ok
+
+
+@searched_contact_time.defjvp
+def _searched_contact_time_jvp(primals, tangents):
+    # Implicit differentiation of g_k(t*; scene, state) = 0: the derivative of
+    # the root comes from the gap at the root, never from the search iterations.
+    scene, state = primals
+    t, index, ok = searched_contact_time(scene, state)
+    finite = jnp.isfinite(t)
+    t_safe = jnp.where(finite, t, 0.0)
+
+    def gap_at_root(scene_, state_):
+        profile, _ = scene_.root_search(state_)
+        return scene_.gaps_along_flight(profile, t_safe)[0][index]
+
+    _, gap_tangent = jax.jvp(gap_at_root, primals, tangents)
+    profile, _ = scene.root_search(state)
+    slope = scene.gaps_along_flight(profile, t_safe)[1][index]
+    t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
+    zero = np.zeros((), dtype=jax.dtypes.float0)
+    return (t, index, ok), (t_tangent, zero, zero)
+
+
+def advance(scene, state: jax.Array, constants: Any):
+    """``(new_state, dt, contact)``: the flight from ``state`` to the next collision and its impulse.
+
+    For a state known to be valid; ``constants`` are ``scene.orbit_constants``
+    of the orbit's first state.
+    """
+    if scene.searches_for_roots:
+        t, index, ok = searched_contact_time(scene, state)
+    else:
+        t, index = scene.closed_form_contact(state, constants)
+        ok = jnp.array(True)
+    kicked, contact = scene.collide_at(state, jnp.where(jnp.isfinite(t), t, 0.0), index, constants)
+    return finish_step(state, kicked, t, contact, ok)
+
+
+# -- the lane state machine ---------------------------------------------------------
+
+
+class Lane(NamedTuple):
+    """One orbit in flight, between two root steps.
+
+    Attributes:
+        state: ``(S,)`` the state at the start of the flight (just after the
+            last collision).
+        t: ``()`` the search's current time along the flight (for a
+            closed-form scene, the contact time).
+        index: ``()`` int32, the gap the search approaches (or found).
+        found: ``()`` the search is over: a proven root at ``t``, ``t = inf``
+            (no contact ever) or a hopeless (non-finite) lane.
+        steps: ``()`` int32, root steps taken in this flight.
+        profile: the scene's ``root_search`` profile (``None`` for a closed form).
+        bounds: the flight's ``RootBounds`` (``None`` for a closed form).
+    """
+
+    state: jax.Array
+    t: jax.Array
+    index: jax.Array
+    found: jax.Array
+    steps: jax.Array
+    profile: Any
+    bounds: Any
+
+
+def begin_flight(scene, state: jax.Array, constants: Any) -> Lane:
+    """A lane about to search for the contact that ends the flight from ``state``."""
+    if scene.searches_for_roots:
+        profile, bounds = scene.root_search(state)
+        t = search_start(bounds)
+        return Lane(state, t, jnp.int32(0), jnp.isinf(t), jnp.int32(0), profile, bounds)
+    t, index = scene.closed_form_contact(state, constants)
+    return Lane(state, t, jnp.asarray(index, jnp.int32), jnp.array(True), jnp.int32(0), None, None)
+
+
+def search_step(scene, lane: Lane) -> Lane:
+    """One safe step of the lane's search (nothing for a lane whose search is over)."""
+    if not scene.searches_for_roots:
+        return lane
+    gap, slope = scene.gaps_along_flight(lane.profile, lane.t)
+    t, index, done = root_step(gap, slope, lane.bounds, lane.t)
+    searching = ~lane.found
+    return lane._replace(
+        t=jnp.where(searching, t, lane.t),
+        index=jnp.where(searching, index, lane.index),
+        found=lane.found | done,
+        steps=lane.steps + searching.astype(jnp.int32),
+    )
+
+
+def end_flight(scene, lane: Lane, constants: Any):
+    """``(new_state, dt, contact)`` of a lane whose search is over (or hit the step bound), as ``advance``."""
+    t = lane.t
+    kicked, contact = scene.collide_at(lane.state, jnp.where(jnp.isfinite(t), t, 0.0), lane.index, constants)
+    return finish_step(lane.state, kicked, t, contact, lane.found)
+
+
+def tree_where(condition, if_true, if_false):
+    return jax.tree.map(lambda a, b: jnp.where(condition, a, b), if_true, if_false)
+
+
+def end_and_begin(scene, lane: Lane, active: jax.Array, constants: Any):
+    """A lane whose search is over (or out of steps) applies its impulse and begins its next flight.
+
+    ``active = False`` freezes the lane (its orbit has all the collisions it
+    was asked for). Returns ``(lane, (collided, new_state, dt, contact))``:
+    whether the lane completed a collision, and that collision's result.
+    """
+    collided = active & (lane.found | (lane.steps >= MAX_ROOT_STEPS))
+    new_state, dt, contact = end_flight(scene, lane, constants)
+    lane = tree_where(collided, begin_flight(scene, new_state, constants), lane)
+    return lane, (collided, new_state, dt, contact)
