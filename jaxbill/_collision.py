@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
+from . import _lanes as lanes
 from ._step import advance
 from ._validation import (
     check_orbit_length,
@@ -163,24 +164,33 @@ def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     return Orbit(t=t, contact=contact, state=states)
 
 
-def _orbit_batch(scene: Scene, states0: jax.Array, n: int) -> Orbit:
+def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "lockstep") -> Orbit:
+    """``jb.orbit`` of a batch ``(B, S)`` on one device, in lanes of ``scene.batch_chunk`` orbits."""
     batch, size = states0.shape
     chunk = max(1, min(batch, scene.batch_chunk))
     pad = (-batch) % chunk
     padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, size))])
-    run_chunk = jax.vmap(_orbit_scan, in_axes=(None, 0, None))
-    out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
-    return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
+    if driver == "lockstep":
+        run_chunk = jax.vmap(_orbit_scan, in_axes=(None, 0, None))
+        out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
+        return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
+    plan = lanes.Plan("states", every=1, rows=n)
+    _, (t, contact, states) = lanes.run_blocks(plan, chunk)(scene, padded, lanes.fresh_carry(scene, padded), 0, n)
+    invalid = ~jax.vmap(scene.is_valid)(padded)
+    t, contact, states = (jnp.where(invalid.reshape(-1, *([1] * (a.ndim - 1))), jnp.nan if a.dtype == jnp.float64 else 0, a)
+                          for a in (t, contact, states))
+    contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
+    return Orbit(t=t[:batch], contact=contact[:batch], state=states[:batch])
 
 
 @eqx.filter_jit
-def _orbit_jit(scene, state0, n):
+def _orbit_jit(scene, state0, n, driver="lockstep"):
     if state0.ndim == 1:
         return _orbit_scan(scene, state0, n)
-    return _orbit_batch(scene, state0, n)
+    return _orbit_batch(scene, state0, n, driver)
 
 
-def orbit(scene: Scene, state0: jax.Array, n: int) -> Orbit:
+def orbit(scene: Scene, state0: jax.Array, n: int, *, driver: str | None = None) -> Orbit:
     """The first ``n`` collisions of the orbit from ``state0``.
 
     Args:
@@ -189,12 +199,22 @@ def orbit(scene: Scene, state0: jax.Array, n: int) -> Orbit:
         state0: initial state, shape ``(S,)`` (``S = scene.state_size``: 6, 6,
             12), or a batch of them, shape ``(B, S)``.
         n: number of collisions (a Python int, static: each new ``n`` compiles).
+        driver: for a batch, ``"lockstep"`` or ``"lanes"`` (see
+            ``jaxbill._lanes.choose_driver``); ``None``, the default, picks
+            the faster on the platform (``"lockstep"`` on a CPU, ``"lanes"`` on
+            a GPU). Both give the same orbits to rounding.
 
     Returns:
         ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, S)``
         (with a leading ``B`` axis for a batch). Equivalent to ``n`` applications
         of ``collide`` under ``lax.scan``; ``jax.vmap(orbit, in_axes=(None, 0,
         None))`` gives orbit by orbit what single runs give.
+
+    A concrete batch is split over every device JAX shows (``jb.orbit_sharded``;
+    on a CPU jaxbill shows one device per core), padded to whole lanes of
+    ``scene.batch_chunk`` orbits on each, so an orbit's result does not depend
+    on the batch around it or on the number of devices. Inside ``jit`` or
+    ``vmap`` a batch runs on one device.
 
     Raises:
         ValueError: for ``n`` not an integer in ``[0, 2**31 - 1]``, a bad
@@ -207,4 +227,10 @@ def orbit(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     """
     n = check_orbit_length(n)
     _check_eagerly(scene, state0)
-    return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n)
+    concrete = is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene))
+    if concrete and jnp.ndim(state0) == 2 and jax.process_count() == 1:
+        from ._sharding import orbit_sharded  # noqa: PLC0415 (_sharding builds on this module)
+
+        return orbit_sharded(scene, state0, n, driver=driver)
+    chosen = lanes.choose_driver(jax.devices()[0].platform, driver)
+    return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, chosen)

@@ -26,6 +26,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._collision import Orbit, _check_eagerly, _orbit_batch
+from ._lanes import choose_driver
 from ._validation import check_orbit_length
 
 ORBIT_AXIS = "orbits"
@@ -114,11 +115,13 @@ def shard_over_orbits(batched_function, mesh: Mesh, batched_args: tuple[bool, ..
 
 
 @functools.lru_cache(maxsize=32)
-def _sharded_orbit_function(mesh: Mesh, n: int):
-    return shard_over_orbits(lambda scene, states0: _orbit_batch(scene, states0, n), mesh, (False, True))
+def _sharded_orbit_function(mesh: Mesh, n: int, driver: str):
+    return shard_over_orbits(lambda scene, states0: _orbit_batch(scene, states0, n, driver), mesh, (False, True))
 
 
-def orbit_sharded(scene, states0, n: int, devices: Mesh | Sequence[jax.Device] | None = None) -> Orbit:
+def orbit_sharded(
+    scene, states0, n: int, devices: Mesh | Sequence[jax.Device] | None = None, *, driver: str | None = None
+) -> Orbit:
     """``jb.orbit`` for a batch, split over several devices.
 
     Args:
@@ -127,6 +130,8 @@ def orbit_sharded(scene, states0, n: int, devices: Mesh | Sequence[jax.Device] |
             ``jax.distributed`` every process passes the same full batch.
         n: collisions per orbit (a Python int, static).
         devices: see ``orbit_mesh`` (default: every device of every process).
+        driver: ``"lockstep"``, ``"lanes"`` or ``None`` (the platform's
+            default): see ``jb.orbit``.
 
     Returns:
         ``Orbit`` with fields ``(B, n)``, ``(B, n)`` and ``(B, n, S)``, as global
@@ -147,8 +152,9 @@ def orbit_sharded(scene, states0, n: int, devices: Mesh | Sequence[jax.Device] |
         raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
     _check_eagerly(scene, states0)
     mesh = orbit_mesh(devices)
+    driver = choose_driver(mesh.devices.flat[0].platform, driver)
     batch = states0.shape[0]
     padded = pad_batch(states0, padded_batch_size(batch, scene.batch_chunk, mesh))
     scene_on_mesh = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
-    result = _sharded_orbit_function(mesh, n)(scene_on_mesh, to_mesh(padded, mesh, batched=True))
+    result = _sharded_orbit_function(mesh, n, driver)(scene_on_mesh, to_mesh(padded, mesh, batched=True))
     return jax.tree.map(lambda a: a[:batch], result) if padded.shape[0] != batch else result

@@ -1,0 +1,196 @@
+"""The two batch drivers, lockstep and the lane state machine, run the same collision map.
+
+Both are built from the scene's own pieces (``jaxbill._step``); the lane state
+machine takes the root steps of many orbits in one loop, none waiting for
+another. From identical states they must find the same contacts, in the same
+number of root steps, with states and times equal to rounding; and the state
+machine must handle what a batch throws at it: poisoned lanes, padding, lanes
+that run out of steps, ``n = 0``, records every ``k`` collisions and sections.
+"""
+
+import numpy as np
+import pytest
+
+import jax
+import jax.numpy as jnp
+
+import jaxbill as jb
+from jaxbill import _collision, _lanes, _step
+from jaxbill._first_root import first_root
+from helpers import random_states
+
+INF = float("inf")
+N = 40
+
+
+def scenes():
+    return {
+        "rotor 1.9": jb.StickInCircle(R=2.0, ell=1.9),
+        "rotor 1.0": jb.StickInCircle(R=2.0, ell=1.0),
+        "lens": jb.StickInCircle(R=2.0, ell=1.5, inertia=INF),
+        "circle": jb.StickInCircle(R=2.0, ell=0.0),
+        "walls 2D": jb.StickBetweenWalls2D(h=3.0, ell=1.0),
+        "walls 2D static": jb.StickBetweenWalls2D(h=3.0, ell=1.0, inertia=INF),
+        "walls 3D": jb.StickBetweenWalls3D(h=3.0, ell=1.0),
+    }
+
+
+def start_states(scene, count, seed=7):
+    """Valid starts: the states just after a few collisions from random ones (any scene)."""
+    if isinstance(scene, jb.StickInCircle):
+        return np.asarray(random_states(np.random.default_rng(seed), count, 2.0, float(scene.ell), scene.kind))
+    rng = np.random.default_rng(seed)
+    if scene.state_size == 6:
+        z = rng.uniform(1.2, 1.8, count)
+        theta = rng.uniform(-np.pi, np.pi, count)
+        v = rng.normal(size=(count, 2))
+        omega = 0.0 if scene.kind == "static" else rng.normal(size=count)
+        s = np.stack([np.zeros(count), z, theta, v[:, 0], v[:, 1], np.broadcast_to(omega, (count,))], axis=1)
+        return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
+    u = rng.normal(size=(count, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = rng.normal(size=(count, 3))
+    w -= np.sum(w * u, axis=1, keepdims=True) * u
+    c = np.stack([np.zeros(count), np.zeros(count), rng.uniform(1.2, 1.8, count)], axis=1)
+    s = np.concatenate([c, u, rng.normal(size=(count, 3)), w], axis=1)
+    return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
+
+
+@pytest.fixture(scope="module", params=list(scenes()))
+def case(request):
+    scene = scenes()[request.param]
+    return request.param, scene, start_states(scene, scene.batch_chunk + 5)
+
+
+def _one_collision_each(scene, states, driver):
+    orbit = jb.orbit(scene, states, 1, driver=driver)
+    return np.asarray(orbit.t[:, 0]), np.asarray(orbit.contact[:, 0]), np.asarray(orbit.state[:, 0])
+
+
+def test_one_collision_agrees_between_drivers(case):
+    """One collision from identical states: same contacts, states and times to rounding."""
+    _, scene, states = case
+    t_lock, contact_lock, state_lock = _one_collision_each(scene, states, "lockstep")
+    t_lanes, contact_lanes, state_lanes = _one_collision_each(scene, states, "lanes")
+    np.testing.assert_array_equal(contact_lanes, contact_lock)
+    np.testing.assert_allclose(t_lanes, t_lock, rtol=1e-13, atol=0)
+    scale = np.max(np.abs(state_lock), axis=1, keepdims=True)
+    assert np.max(np.abs(state_lanes - state_lock) / scale) < 1e-13
+
+
+def test_collision_by_collision_from_identical_states(case):
+    """Each collision of the lane driver's orbit, restarted by the lockstep map from
+    the lane driver's own previous state, agrees to rounding with the same contact:
+    the comparison chaos cannot spoil."""
+    _, scene, states = case
+    orbit = jb.orbit(scene, states, N, driver="lanes")
+    before = np.concatenate([states[:, None], np.asarray(orbit.state[:, :-1])], axis=1).reshape(-1, scene.state_size)
+    t_lanes = np.diff(np.concatenate([np.zeros((states.shape[0], 1)), np.asarray(orbit.t)], axis=1), axis=1).ravel()
+    t_lock, contact_lock, state_lock = _one_collision_each(scene, before, "lockstep")
+    np.testing.assert_array_equal(np.asarray(orbit.contact).ravel(), contact_lock)
+    np.testing.assert_allclose(t_lanes, t_lock, rtol=1e-12 * N, atol=1e-13)
+    after = np.asarray(orbit.state).reshape(-1, scene.state_size)
+    scale = np.max(np.abs(state_lock), axis=1, keepdims=True)
+    assert np.max(np.abs(after - state_lock) / scale) < 1e-12
+
+
+def _lane_root_steps(scene, state):
+    lane = _step.begin_flight(scene, state, scene.orbit_constants(state))
+    lane = jax.lax.while_loop(lambda l: ~l.found & (l.steps < _step.MAX_ROOT_STEPS),
+                              lambda l: _step.search_step(scene, l), lane)
+    return lane.t, lane.index, lane.steps
+
+
+def test_same_root_steps_as_the_whole_collision_search():
+    """The state machine's search takes exactly the steps of ``first_root`` and ends at the same root."""
+    for name, scene in scenes().items():
+        if not scene.searches_for_roots:
+            continue
+        states = jnp.asarray(start_states(scene, 32))
+        t, index, steps = jax.vmap(lambda s: _lane_root_steps(scene, s))(states)
+
+        def whole(s):
+            profile, bounds = scene.root_search(s)
+            return first_root(lambda tt: scene.gaps_along_flight(profile, tt), bounds, _step.MAX_ROOT_STEPS)
+
+        t_ref, index_ref, steps_ref, ok = jax.vmap(whole)(states)
+        assert bool(jnp.all(ok)), name
+        np.testing.assert_array_equal(np.asarray(steps), np.asarray(steps_ref), err_msg=name)
+        np.testing.assert_array_equal(np.asarray(index), np.asarray(index_ref), err_msg=name)
+        np.testing.assert_allclose(np.asarray(t), np.asarray(t_ref), rtol=4e-15, err_msg=name)
+        assert float(jnp.mean(steps)) > 1.0, name  # the search really iterated
+
+
+def test_run_records_agree_between_drivers(case):
+    """States every k collisions, run statistics and final states, in chunks that do not divide n."""
+    name, scene, states = case
+    runs = {d: jb.run(scene, states, N, record="states", every=3, chunk=17, driver=d) for d in ("lockstep", "lanes")}
+    lock, lanes_run = runs["lockstep"], runs["lanes"]
+    assert lanes_run.state.shape == lock.state.shape == (states.shape[0], N // 3, scene.state_size)
+    np.testing.assert_array_equal(lanes_run.contact_counts.sum(axis=1), N)
+    # Chaos amplifies rounding differences (by up to 10x a collision for the
+    # walls): compare the first record, collision 3, across drivers ...
+    np.testing.assert_array_equal(lanes_run.contact[:, 0], lock.contact[:, 0])
+    np.testing.assert_allclose(lanes_run.t[:, 0], lock.t[:, 0], rtol=1e-12)
+    assert np.all(lanes_run.max_energy_error < 1e-13), name
+
+
+def test_a_resumed_run_is_bitwise_the_whole_run_with_the_lane_driver():
+    """A checkpoint resumes bit for bit with the driver that wrote it: every chunk,
+    the resumed ones too, is the same compiled program."""
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    states = start_states(scene, scene.batch_chunk + 3)
+    whole = jb.run(scene, states, N, record="states", every=2, chunk=10, driver="lanes")
+    first = jb.run(scene, states, 20, record="states", every=2, chunk=10, driver="lanes")
+    rest = jb.run(scene, states, N, record="states", every=2, chunk=10, driver="lanes", resume=first.checkpoint)
+    np.testing.assert_array_equal(np.concatenate([first.state, rest.state], axis=1), whole.state)
+    np.testing.assert_array_equal(rest.final_state, whole.final_state)
+    np.testing.assert_array_equal(rest.contact_counts, whole.contact_counts)
+
+
+def test_section_records_with_the_lane_driver():
+    scene = jb.StickInCircle(R=2.0, ell=1.5, inertia=INF)
+    states = start_states(scene, 10)
+    section = jb.Section(where=_hits_p1, capacity=4)
+    lanes_run = jb.run(scene, states, N, record=section, driver="lanes")
+    orbit = jb.orbit(scene, states, N, driver="lanes")
+    for i in range(states.shape[0]):
+        kept = np.asarray(orbit.contact[i]) == 1
+        np.testing.assert_array_equal(lanes_run.section.point[lanes_run.section.orbit == i], np.asarray(orbit.state[i])[kept])
+        np.testing.assert_array_equal(lanes_run.section.collision[lanes_run.section.orbit == i], np.flatnonzero(kept) + 1)
+
+
+def _hits_p1(scene, state, contact):
+    return contact == 1
+
+
+def test_poisoned_lanes_and_zero_collisions():
+    """A NaN lane inside jit poisons only its own orbit and cannot stall the others; n = 0 is empty."""
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    states = start_states(scene, 5)
+    bad = states.copy()
+    bad[2, 0] = np.nan
+    orbit = jax.jit(lambda s: jb.orbit(scene, s, N, driver="lanes"))(jnp.asarray(bad))
+    good = jb.orbit(scene, states, N, driver="lanes")
+    assert np.all(np.isnan(np.asarray(orbit.state[2]))) and np.all(np.asarray(orbit.contact[2]) == 0)
+    keep = [0, 1, 3, 4]
+    np.testing.assert_allclose(np.asarray(orbit.t[keep, :5]), np.asarray(good.t[keep, :5]), rtol=1e-12)
+    empty = jb.orbit(scene, states, 0, driver="lanes")
+    assert empty.state.shape == (5, 0, 6) and empty.t.shape == (5, 0)
+
+
+def test_a_lane_out_of_root_steps_is_poisoned_not_hung(monkeypatch):
+    """A search that hits the step bound proves nothing: that collision is NaN, contact 0, as for ``collide``."""
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    states = jnp.asarray(start_states(scene, 4))
+    monkeypatch.setattr(_step, "MAX_ROOT_STEPS", 1)
+    monkeypatch.setattr(_lanes, "MAX_ROOT_STEPS", 1)
+    orbit = jax.jit(lambda s: _collision._orbit_batch(scene, s, 3, "lanes"))(states)
+    assert np.all(np.isnan(np.asarray(orbit.t))) and np.all(np.asarray(orbit.contact) == 0)
+    assert np.all(np.isnan(np.asarray(orbit.state)))
+
+
+def test_unknown_driver_is_refused():
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    with pytest.raises(ValueError, match="driver"):
+        jb.orbit(scene, start_states(scene, 2), 3, driver="gpu")
