@@ -18,6 +18,7 @@ from ._chaos import (  # noqa: E402
 )
 from ._checker import check, CheckFlag, CheckReport, CheckResult  # noqa: E402
 from ._collision import collide, orbit, Orbit  # noqa: E402
+from ._explorer import explore  # noqa: E402
 from ._lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
 from ._periodic import (  # noqa: E402
     STABILITY_LABELS,
@@ -109,6 +110,7 @@ __all__ = [
     "PeriodicOrbit",
     "STABILITY_LABELS",
     "check",
+    "explore",
     "CheckResult",
     "CheckReport",
     "CheckFlag",

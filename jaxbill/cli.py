@@ -47,6 +47,50 @@ def _figures(args: argparse.Namespace) -> int:
     return 0
 
 
+def _explore_scene(args: argparse.Namespace):
+    import jaxbill as jb
+
+    if args.scene == "circle":
+        ell = 1.2 if args.ell is None else args.ell
+        return jb.StickInCircle(R=args.R, ell=ell, inertia=args.inertia)
+    ell = 1.0 if args.ell is None else args.ell
+    walls = jb.StickBetweenWalls2D if args.scene == "walls2d" else jb.StickBetweenWalls3D
+    return walls(h=args.h, ell=ell, inertia=args.inertia)
+
+
+def _parse_point(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y (two numbers); got {text!r}") from None
+    return x, y
+
+
+def _explore(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    if args.save:
+        matplotlib.use("Agg")  # no window: seed, click, save
+    from ._explorer import explore, sample_clicks
+
+    invariants = {name: value for name, value in (("energy", args.energy), ("angular_momentum", args.L),
+                                                  ("spin", args.spin)) if value is not None}
+    explorer = explore(_explore_scene(args), save_path=args.save or "jaxbill_explorer.png", **invariants)
+    if not args.save:
+        import matplotlib.pyplot as plt
+
+        plt.show()
+        return 0
+    clicks = args.click or sample_clicks(explorer, args.clicks)
+    for x, y in clicks:
+        explorer.click(x, y)
+        print(explorer.status)
+    path = explorer.save(args.save)
+    print(f"wrote {path}: {explorer.chart.title} of {type(explorer.scene).__name__} with "
+          f"{len(explorer.orbits)} clicked orbits over a {explorer._survey_message}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="jaxbill", description="Rigid-body billiards in JAX.")
     commands = parser.add_subparsers(dest="command")
@@ -64,6 +108,27 @@ def main(argv: list[str] | None = None) -> int:
     figures.add_argument("--quick", action="store_true", help="a small, fast version (for tests)")
     figures.add_argument("--no-progress", action="store_true", help="no progress bar")
     figures.set_defaults(run=_figures)
+    explore = commands.add_parser(
+        "explore",
+        help="an interactive section explorer: click on the section to start an orbit, sliders for the parameters",
+    )
+    explore.add_argument("--scene", choices=("circle", "walls2d", "walls3d"), default="circle",
+                         help="StickInCircle (default), StickBetweenWalls2D or StickBetweenWalls3D")
+    explore.add_argument("--R", type=float, default=2.0, help="circle radius (default 2)")
+    explore.add_argument("--h", type=float, default=3.0, help="distance between the walls (default 3)")
+    explore.add_argument("--ell", type=float, default=None,
+                         help="stick half-length (default 1.2 in the circle, 1 between walls)")
+    explore.add_argument("--inertia", type=float, default=None,
+                         help="moment of inertia (default mass ell^2; inf: the static lens)")
+    explore.add_argument("--energy", type=float, default=None, help="the section's energy E (E' for walls; 0.5)")
+    explore.add_argument("--L", type=float, default=None, help="the circle's angular momentum L (default 0)")
+    explore.add_argument("--spin", type=float, default=None, help="walls3d: I w_z (default 0.6 sqrt(I))")
+    explore.add_argument("--save", metavar="PATH", default=None,
+                         help="no window: seed the survey, click a few points, save a PNG to PATH")
+    explore.add_argument("--clicks", type=int, default=4, help="with --save: sample points to click (default 4)")
+    explore.add_argument("--click", type=_parse_point, action="append", metavar="X,Y",
+                         help="with --save: click this section point (repeatable; replaces --clicks)")
+    explore.set_defaults(run=_explore)
     args = parser.parse_args(argv)
     if args.command is None:
         args = parser.parse_args(["demo", *(argv or [])])
