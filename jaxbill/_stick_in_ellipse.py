@@ -1,0 +1,498 @@
+"""The stick in an ellipse: a rigid stick bouncing elastically inside ``x^2/a^2 + y^2/b^2 <= 1``.
+
+State layout (float64, shape ``(6,)``), as for ``StickInCircle``::
+
+    [x, y, alpha, vx, vy, omega]
+
+``(x, y)`` is the stick's centre (length units), ``alpha`` the angle of end P1
+from the x axis (radians), ``(vx, vy)`` the centre's velocity and ``omega`` the
+spin (radians per time unit). The ends are ``P_k = c + k ell u``,
+``u = (cos alpha, sin alpha)``, ``k = +1`` for P1 (contact ``+1``) and ``-1``
+for P2 (contact ``-1``); ``2`` is both ends at once, ``0`` none.
+
+The table and the gaps. Semi-axis ``a`` lies along x and ``b`` along y; either
+may be the larger (the physics is the same turned by a quarter turn). Each
+end's gap is ``g_k = a b - P_k^T D P_k``, ``D = diag(b/a, a/b)``: a positive
+multiple of ``1 - x^2/a^2 - y^2/b^2``, scaled so that for ``a = b = R`` it is
+the circle's ``R^2 - |P_k|^2``. The bounds the first-root search needs (the
+range of ``g_k''`` along a flight and a quiet region of the centre) are
+derived in ``jaxbill._smooth_table``.
+
+The impulse. In the configuration ``q = (x, y, alpha)`` with the mass matrix
+``diag(M, M, I)``, ``grad_q g_k = -2 (N, s_k)`` with the outward normal
+``N = D P_k`` and the lever ``s_k = k ell (u x N)``; the mass-metric reflection
+about it is, with ``v_n = v . N + omega s_k``,
+``w = 2 v_n / (|N|^2 + (M/I) s_k^2)``: ``v' = v - w N``,
+``omega' = omega - w (M/I) s_k`` (``StickInCircle``'s law with ``N = P``).
+
+Valid parameters and states. ``a, b > 0`` finite; ``0 <= ell < max(a, b)``:
+the longest chord of the ellipse is its major axis, ``2 max(a, b)``, so a
+longer stick fits nowhere. For ``min(a, b) <= ell`` the stick fits only in
+orientations near the major axis and only near the centre of the table; a
+valid state is then what it is for every stick: both ends strictly inside (a
+gap ``>= -1e-12 ab`` counts as on the wall), or an end on the wall moving
+inwards, as just after a collision. The ellipse is convex, so both ends inside
+puts the whole stick inside; the orientations that fit follow from the state,
+and the dynamics never leaves them (``check_state_values`` and ``is_valid``
+enforce it through the gaps).
+
+Invariants. The energy only, in general: the wall's normal does not pass
+through the origin, so ``angular_momentum`` (about the centre of the table)
+changes at every collision unless ``a = b``. For a point particle (``ell = 0``)
+the product of the centre's angular momenta about the two foci,
+``focal_momentum_product``, is conserved (the elliptic billiard is integrable).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._first_root import RootBounds
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._smooth_table import EllipseTable
+from ._step import searched_contact_time
+from ._validation import (
+    broadcast_parameters,
+    check_parameter,
+    is_concrete,
+    motion_is_representable,
+    on_wall_not_inwards,
+    real_parameter,
+    require_x64,
+)
+
+_ENDS = (1.0, -1.0)  # contact index 0 -> end P1 (+1), index 1 -> end P2 (-1)
+
+# A second end within this many ulps of ``ab`` of the wall at a contact touches
+# it at the same instant (a corner of the static stick's region): both impulses
+# are applied in one event.
+_CORNER_ULPS = 64.0
+
+# Lanes per chunk of a batch run: a vmapped root search waits for its slowest lane.
+_BATCH_CHUNK = {"rotor": 64, "static": 256, "point": 256}
+
+KINDS = ("rotor", "static", "point")
+
+# The impulse's normal is scaled so that its squared norm sits near this value
+# (mid-binade, with a reciprocal of no short binary period): see
+# ``StickInCircle.kick``, whose scaling this one equals for ``a = b``.
+_KICK_DENOMINATOR = math.pi / 2
+
+
+def _checked_parameters(a, b, ell, mass, inertia):
+    """Validate concrete parameters; return them broadcast to one shape, and the scene kind."""
+    named = (("a", a), ("b", b), ("ell", ell), ("mass", mass))
+    a, b, ell, mass = (real_parameter(name, v) for name, v in named)
+    if inertia is not None:
+        inertia = real_parameter("inertia", inertia)
+    broadcast_parameters(a=a, b=b, ell=ell, mass=mass, inertia=inertia)
+    for name, v in (("a", a), ("b", b), ("ell", ell), ("mass", mass)):
+        check_parameter(name, v, np.isfinite(v), "finite")
+    check_parameter("a", a, a > 0, "> 0 (the semi-axis along x)")
+    check_parameter("b", b, b > 0, "> 0 (the semi-axis along y)")
+    check_parameter("ell", ell, ell >= 0, ">= 0")
+    a_, b_, ell_ = np.broadcast_arrays(a, b, ell)
+    check_parameter(
+        "ell", ell_, ell_ < np.maximum(a_, b_),
+        "< max(a, b) (the stick must fit along the major axis, the longest chord)",
+    )
+    check_parameter("mass", mass, mass > 0, "> 0")
+    point = bool(np.all(ell == 0))
+    if not point and np.any(ell == 0):
+        raise ValueError("ell must be all zero or all positive within one batch of scenes")
+    if inertia is None:
+        inertia = mass * ell**2
+    else:
+        check_parameter("inertia", inertia, ~np.isnan(inertia), "a number or inf, not NaN")
+        check_parameter("inertia", inertia, inertia > 0, "> 0 (or inf for a stick that never turns)")
+    static = (not point) and bool(np.all(np.isinf(inertia)))
+    if not point and not static and np.any(np.isinf(inertia)):
+        raise ValueError("inertia must be all finite or all inf within one batch of scenes")
+    kind = "point" if point else ("static" if static else "rotor")
+    return (*np.broadcast_arrays(a, b, ell, mass, inertia), kind)
+
+
+class StickInEllipse(eqx.Module):
+    """A stick of half-length ``ell`` bouncing elastically inside the ellipse ``x^2/a^2 + y^2/b^2 <= 1``.
+
+    Args:
+        a: semi-axis along x, ``a > 0`` (length).
+        b: semi-axis along y, ``b > 0``; either of ``a``, ``b`` may be the larger.
+        ell: half-length of the stick, ``0 <= ell < max(a, b)``. For
+            ``ell >= min(a, b)`` the stick fits only in some orientations (see
+            the module docstring). ``ell = 0`` is the elliptic billiard of a
+            point (the spin decouples).
+        mass: total mass ``M > 0`` (default 1).
+        inertia: moment of inertia about the centre, ``I > 0``. ``None`` means
+            ``mass * ell**2``; ``float('inf')`` is a stick that never turns
+            (``omega`` must then be 0).
+
+    Parameters may be arrays of one common shape ``(B,)`` (scalars broadcast),
+    a batch of scenes for ``jax.vmap(..., in_axes=(0, ...))``.
+
+    The leaves ``a, b, ell, mass, inertia`` are differentiable. ``kind`` is
+    static and chooses the compiled code: ``"static"`` (infinite inertia) and
+    ``"point"`` (``ell = 0``) have closed-form collision times (each gap is a
+    quadratic in ``t``); ``"rotor"`` uses the safe-step root search.
+
+    What the engine asks of it, for one orbit's values: ``root_search_setup``
+    (the search's bounds), ``contact_gaps`` (the gaps along a flight) and
+    ``resolve_contact`` (the impulses at a contact); ``jaxbill._step`` composes
+    them (through ``root_search``, ``gaps_along_flight``, ``collide_at``) with
+    the safe-step search, or with ``closed_form_contact`` for the static
+    stick and the point.
+    """
+
+    a: jax.Array
+    b: jax.Array
+    ell: jax.Array
+    mass: jax.Array
+    inertia: jax.Array
+    kind: str = eqx.field(static=True)
+
+    state_size: ClassVar[int] = 6
+    state_layout: ClassVar[str] = "[x, y, alpha, vx, vy, omega]"
+    gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
+    wall_name: ClassVar[str] = "the ellipse"
+
+    def __init__(self, a, b, ell, mass=1.0, inertia=None, *, kind: str | None = None):
+        require_x64()
+        leaves = [a, b, ell, mass] + ([] if inertia is None else [inertia])
+        if all(is_concrete(v) for v in leaves):
+            a, b, ell, mass, inertia, guessed = _checked_parameters(a, b, ell, mass, inertia)
+        else:
+            # Traced parameters cannot be checked here; invalid ones poison
+            # the results with NaN instead (``is_valid``).
+            if inertia is None:
+                inertia = mass * ell**2
+            static_literal = isinstance(inertia, float) and math.isinf(inertia)
+            guessed = "static" if static_literal else "rotor"
+        self.a, self.b, self.ell, self.mass, self.inertia = (
+            jnp.asarray(v, dtype=jnp.float64) for v in (a, b, ell, mass, inertia)
+        )
+        if kind is not None and kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
+        self.kind = guessed if kind is None else kind
+
+    def check(self) -> None:
+        """Raise ValueError if the parameters are invalid or do not fit ``kind``."""
+        default = self.kind == "point" and is_concrete(self.inertia) and np.all(np.asarray(self.inertia) == 0)
+        *_, kind = _checked_parameters(self.a, self.b, self.ell, self.mass, None if default else self.inertia)
+        if kind != self.kind:
+            raise ValueError(
+                f"the parameters describe a {kind!r} scene but this scene was compiled as {self.kind!r} "
+                "(inertia = inf is the static stick, ell = 0 the point): build a new StickInEllipse"
+            )
+
+    @property
+    def table(self) -> EllipseTable:
+        return EllipseTable(self.a, self.b)
+
+    # -- what the collision engine asks of a scene (see jaxbill._scene) -------
+
+    @property
+    def batch_chunk(self) -> int:
+        return _BATCH_CHUNK[self.kind]
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        return self.a * self.b
+
+    def check_state_values(self, state: np.ndarray) -> None:
+        a = np.asarray(self.a)
+        if a.ndim and state.ndim == 2 and a.shape[0] != state.shape[0]:
+            raise ValueError(
+                f"a batch of {a.shape[0]} scenes needs a batch of {a.shape[0]} states; got {state.shape[0]}"
+            )
+        if self.kind == "static" and np.any(state[..., 5] != 0):
+            raise ValueError(
+                "omega must be 0 for a stick that never turns (inertia = inf): an infinitely heavy stick cannot spin"
+            )
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        params_ok = (
+            (self.a > 0)
+            & (self.b > 0)
+            & jnp.isfinite(self.a)
+            & jnp.isfinite(self.b)
+            & (self.ell >= 0)
+            & (self.ell < jnp.maximum(self.a, self.b))
+            & (self.mass > 0)
+            & jnp.isfinite(self.mass)
+        )
+        if self.kind == "rotor":
+            params_ok &= (self.inertia > 0) & jnp.isfinite(self.inertia)
+        elif self.kind == "point":
+            params_ok &= self.inertia >= 0
+        state_ok = jnp.all(jnp.isfinite(state)) & self.motion_is_representable(state)
+        gaps = self.gaps(state)
+        inside = jnp.all(gaps >= -WALL_TOLERANCE * self.gap_scale)
+        inside &= ~on_wall_not_inwards(gaps, self.approach_speeds(state))
+        ok = params_ok & state_ok & inside
+        if self.kind == "static":
+            ok &= state[5] == 0.0
+        return ok
+
+    def motion_is_representable(self, state) -> jax.Array:
+        """Traceable: ``|v|^2``, ``omega^2`` and the energy are ordinary float64 numbers."""
+        size = jnp.maximum(self.a, self.b)
+        return motion_is_representable(state[..., 3:5], state[..., 5] ** 2, self.energy(state), size)
+
+    def orbit_constants(self, state0: jax.Array) -> jax.Array | None:
+        """A stick that never turns keeps its direction ``u`` for a whole orbit."""
+        return self.direction(state0) if self.kind == "static" else None
+
+    # -- the engine's questions (jaxbill._step): one collision from these pieces --
+    # ``root_search_setup``, ``contact_gaps`` and ``resolve_contact`` are the
+    # three pure functions of one orbit's values; the engine's names for them
+    # (``root_search``, ``gaps_along_flight``, ``collide_at``) wrap them, and
+    # ``jaxbill._step`` differentiates the searched contact time implicitly.
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """Static: a turning stick's gaps are transcendental in time; the others' are quadratics."""
+        return self.kind == "rotor"
+
+    def root_search(self, state: jax.Array):
+        """``(profile, RootBounds)`` of the flight from ``state``: the profile is the state itself."""
+        return state, RootBounds(*self.root_search_setup(state))
+
+    def gaps_along_flight(self, state: jax.Array, t: jax.Array):
+        """``contact_gaps`` under the state machine's name."""
+        return self.contact_gaps(state, t)
+
+    def closed_form_contact(self, state: jax.Array, static_direction: jax.Array | None):
+        """``(t, index)`` for the static stick and the point: each end (the point) moves on a line."""
+        v = state[3:5]
+        table = self.table
+        if self.kind == "point":
+            return table.exit_time(state[0:2], v), jnp.int32(0)
+        times = jnp.stack([table.exit_time(end, v) for end in self.end_points(state, static_direction)])
+        index = jnp.argmin(times).astype(jnp.int32)
+        return times[index], index
+
+    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, static_direction: jax.Array | None):
+        """The flight to ``t`` and the impulse(s) of end ``index`` (0: P1, 1: P2): ``(state, contact)``."""
+        moved = self.flight(state, t)
+        if self.kind == "static" and static_direction is not None:
+            return self._resolve(moved, index, static_direction)
+        return self.resolve_contact(moved, index)
+
+    # -- the three functions of one orbit's values an engine drives ------------
+
+    def root_search_setup(self, state: jax.Array):
+        """The first-root search's bounds for the flight from ``state``.
+
+        Returns ``(lower_curv, upper_curv, quiet_in, quiet_out, time_scale)``,
+        scalars: ``-lower_curv <= g_k''(t) <= upper_curv`` for both ends and
+        every ``t`` up to the first contact; ``(quiet_in, quiet_out)`` a time
+        interval in which no end can touch (the centre inside the quiet
+        ellipse; empty when ``ell >= min(a, b)``); ``time_scale`` a flight time
+        to which the root is resolved. Valid for every kind (for ``static`` and
+        ``point`` the curvature bounds are exact: each gap is a quadratic).
+        Derivations: ``jaxbill._smooth_table``.
+        """
+        table = self.table
+        c, v, omega = state[0:2], state[3:5], state[5]
+        if self.kind == "static":
+            omega = jnp.zeros_like(omega)  # it never turns (and I = inf gives no spin term)
+        p, q = table.metric
+        centre_reach = jnp.maximum(table.reach(self.ell), jnp.hypot(p * c[0], q * c[1]))
+        lower_curv, upper_curv = table.curvature_bounds(v, omega, self.ell, centre_reach)
+        quiet_in, quiet_out = table.quiet_interval(c, v, self.ell)
+        size = jnp.sqrt(table.gap_scale)
+        time_scale = 1.0 / (jnp.linalg.norm(v) / size + jnp.abs(omega))
+        return lower_curv, upper_curv, quiet_in, quiet_out, time_scale
+
+    def contact_gaps(self, state: jax.Array, t: jax.Array):
+        """Both ends' gaps and their time derivatives after a free flight of ``t``: ``(gap, slope)``, each ``(2,)``.
+
+        ``gap`` in units of area (``ab``), ``slope`` per time unit.
+        """
+        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
+        phi = alpha + omega * t
+        cu, su = jnp.cos(phi), jnp.sin(phi)
+        ends = jnp.asarray(_ENDS)[:, None]
+        arm = self.ell * ends
+        points = jnp.stack([x + vx * t, y + vy * t])[None, :] + arm * jnp.stack([cu, su])[None, :]
+        velocities = jnp.stack([vx, vy])[None, :] + (arm * omega) * jnp.stack([-su, cu])[None, :]
+        table = self.table
+        gap = table.gap(points)
+        slope = -2.0 * jnp.sum(table.normal(points) * velocities, axis=-1)
+        return gap, slope
+
+    def resolve_contact(self, state: jax.Array, index: jax.Array):
+        """The impulse(s) at a contact of end ``index`` (0: P1, 1: P2): ``(new_state, contact)``.
+
+        ``state`` is at the contact. If the other end is on the wall too (to
+        ``64`` ulps of ``ab``) and approaching, both are kicked, the faster one
+        first and the other only if it still approaches, and the contact is 2.
+        """
+        return self._resolve(state, index, self.direction(state))
+
+    def _resolve(self, state, index, u):
+        if self.kind == "point":
+            return self.kick(state, 0.0, u), jnp.int32(1)
+        ends = jnp.asarray(_ENDS)
+        gaps = self.gaps(state, u)
+        speeds = self.approach_speeds(state, u)
+        other = 1 - index
+        corner = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.gap_scale) & (speeds[other] > 0.0)
+        # A deterministic rule for an ill-posed event: the faster-approaching
+        # end first, the other after it if it still approaches.
+        first = jnp.where(corner & (speeds[other] > speeds[index]), other, index)
+        second = 1 - first
+        state = self.kick(state, ends[first], u)
+        still_approaching = self.approach_speeds(state, u)[second] > 0.0
+        state = jnp.where(corner & still_approaching, self.kick(state, ends[second], u), state)
+        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.int32(ends[index]))
+        return state, contact
+
+    # -- geometry and flight -------------------------------------------------
+
+    @property
+    def inverse_inertia(self) -> jax.Array:
+        """``1/I``; zero where the spin is never kicked (static stick, point)."""
+        if self.kind == "rotor":
+            return 1.0 / self.inertia
+        return jnp.zeros_like(self.inertia)
+
+    def direction(self, state: jax.Array) -> jax.Array:
+        """The stick's unit vector ``u = (cos alpha, sin alpha)``, shape ``(..., 2)`` (``(1, 0)`` for a point)."""
+        if self.kind == "point":
+            return jnp.stack([jnp.ones_like(state[..., 2]), jnp.zeros_like(state[..., 2])], axis=-1)
+        return jnp.stack([jnp.cos(state[..., 2]), jnp.sin(state[..., 2])], axis=-1)
+
+    def end_points(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
+        """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
+        c = state[..., 0:2]
+        u = self.direction(state) if u is None else u
+        offset = self.ell[..., None] * u
+        return jnp.stack([c + offset, c - offset], axis=-2)
+
+    def gaps(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
+        """Contact gaps ``ab - P_k^T D P_k`` of both ends, shape ``(..., 2)``; >= 0 inside."""
+        ends = self.end_points(state, u)
+        return EllipseTable(self.a[..., None], self.b[..., None]).gap(ends)
+
+    def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
+        """Free flight for time ``t``; ``alpha`` wrapped into ``[-pi, pi)`` (see ``StickInCircle.flight``)."""
+        x, y, alpha, vx, vy, omega = (state[..., i] for i in range(6))
+        if self.kind != "static":
+            alpha = alpha + omega * t
+            alpha = jnp.remainder(alpha + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        return jnp.stack([x + vx * t, y + vy * t, alpha, vx, vy, omega], axis=-1)
+
+    def approach_speeds(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
+        """Velocity of each end along the wall's outward unit normal there, shape ``(..., 2)``; > 0 approaching."""
+        u = self.direction(state) if u is None else u
+        ends = self.end_points(state, u)
+        v = state[..., 3:5]
+        spin = (self.ell * state[..., 5])[..., None]
+        u_perp = jnp.stack([-u[..., 1], u[..., 0]], axis=-1)
+        end_velocity = jnp.stack([v + spin * u_perp, v - spin * u_perp], axis=-2)
+        normal = EllipseTable(self.a[..., None], self.b[..., None]).normal(ends)
+        return jnp.sum(normal * end_velocity, axis=-1) / jnp.linalg.norm(normal, axis=-1)
+
+    # -- the impulse law ------------------------------------------------------
+
+    def kick(self, state: jax.Array, end, u: jax.Array | None = None) -> jax.Array:
+        """Elastic frictionless impulse at end ``end`` (+1 or -1) on the wall: the mass-metric reflection.
+
+        ``N = D P`` scaled by ``sqrt(pi/2 / (ab))`` (any positive factor gives
+        the same impulse; this one keeps ``|N|^2`` near ``pi/2``, and equals
+        ``StickInCircle.kick``'s for ``a = b``), ``s = end ell (u x N)``,
+        ``v_n = v . N + omega s``, ``w = 2 v_n / (|N|^2 + (M/I) s^2)``:
+        ``v' = v - w N``, ``omega' = omega - w (M/I) s``. The energy is
+        conserved exactly for whatever ``N`` rounding produced.
+        """
+        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
+        ux, uy = self.direction(state) if u is None else u
+        arm = end * self.ell
+        p, q = self.table.metric
+        scale = math.sqrt(_KICK_DENOMINATOR) / jnp.sqrt(self.gap_scale)
+        nx, ny = (scale * p) * (x + arm * ux), (scale * q) * (y + arm * uy)
+        s = arm * (ux * ny - uy * nx)
+        v_n = vx * nx + vy * ny + omega * s
+        ratio = self.mass * self.inverse_inertia
+        change = 2.0 * v_n / (nx * nx + ny * ny + ratio * (s * s))
+        return jnp.stack([x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s])
+
+    # -- collision times --------------------------------------------------------
+
+    def next_contact(self, state: jax.Array, static_direction: jax.Array | None = None):
+        """``(t, index, ok)``: time to the next contact (``inf`` if none), which end (0: P1, 1: P2), and
+        ``ok = False`` if the root search hit its step bound. Differentiable (implicitly, for the search)."""
+        if self.kind == "rotor":
+            return searched_contact_time(self, state)
+        t, index = self.closed_form_contact(state, static_direction)
+        return t, index, jnp.array(True)
+
+    # -- invariants and watched quantities ----------------------------------------
+
+    def energy(self, state: jax.Array) -> jax.Array:
+        """``M |v|^2 / 2 + I omega^2 / 2`` (the static stick drops the spin term: omega = 0)."""
+        v2 = state[..., 3] ** 2 + state[..., 4] ** 2
+        e = 0.5 * self.mass * v2
+        if self.kind == "static":
+            return e
+        return e + _spin_term(self.kind, state[..., 5], 0.5 * self.inertia * state[..., 5] ** 2)
+
+    def angular_momentum(self, state: jax.Array) -> jax.Array:
+        """Angular momentum about the table's centre, ``M (x vy - y vx) + I omega``, shape ``(...)``.
+
+        Conserved only for ``a = b``: elsewhere the wall's normal misses the
+        origin and each impulse exerts a torque about it. The static stick
+        returns the orbital part only.
+        """
+        x, y, vx, vy = state[..., 0], state[..., 1], state[..., 3], state[..., 4]
+        orbital = self.mass * (x * vy - y * vx)
+        if self.kind == "static":
+            return orbital
+        return orbital + _spin_term(self.kind, state[..., 5], self.inertia * state[..., 5])
+
+    @property
+    def foci(self) -> jax.Array:
+        """The table's foci ``(2, 2)``: ``(+-sqrt(a^2 - b^2), 0)`` for ``a >= b``, else on the y axis."""
+        half = jnp.sqrt(jnp.abs(self.a**2 - self.b**2))
+        zero = jnp.zeros_like(half)
+        focus = jnp.where(self.a >= self.b, jnp.stack([half, zero]), jnp.stack([zero, half]))
+        return jnp.stack([focus, -focus])
+
+    def focal_momentum_product(self, state: jax.Array) -> jax.Array:
+        """``L1 L2``, the centre's angular momenta ``M (c - F_i) x v`` about the two foci, shape ``(...)``.
+
+        Conserved for a point (``ell = 0``), where it is the elliptic billiard's
+        second integral; the spin is left out (it decouples there). For ``a = b``
+        it is the square of the orbital angular momentum.
+        """
+        c, v = state[..., 0:2], state[..., 3:5]
+        cross = c[..., 0] * v[..., 1] - c[..., 1] * v[..., 0]
+        foci = self.foci
+        moments = [self.mass * (cross - (f[0] * v[..., 1] - f[1] * v[..., 0])) for f in foci]
+        return moments[0] * moments[1]
+
+    # == analysis (tangent maps, Lyapunov spectra: jaxbill._tangent) =====================
+
+    @property
+    def dynamical_indices(self) -> tuple[int, ...]:
+        """All six for a spinning stick; ``(x, y, vx, vy)`` for the static stick and the point."""
+        if self.kind == "rotor":
+            return (0, 1, 2, 3, 4, 5)
+        return (0, 1, 3, 4)
+
+    def phase_velocity(self, state: jax.Array) -> jax.Array:
+        """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
+        state = jnp.asarray(state)
+        return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+
+def _spin_term(kind, omega, term):
+    """``term``; for the point 0 where ``omega = 0`` (``inertia = inf`` must not give NaN)."""
+    return jnp.where(omega == 0.0, 0.0, term) if kind == "point" else term
