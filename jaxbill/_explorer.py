@@ -372,6 +372,10 @@ class ClickedOrbit(NamedTuple):
     collisions: int
 
 
+# A window redraws the whole figure (tens of milliseconds with the survey): while a click's
+# orbit is computed, draw its points at most this often.
+REDRAW_SECONDS = 0.25
+
 # Colours of clicked orbits, in turn: strong against the pale survey.
 CLICK_COLORS = ("#d62728", "#111111", "#ff7f0e", "#c71585", "#8b4513", "#e6194b")
 
@@ -462,8 +466,9 @@ class Explorer:
     def click(self, x: float, y: float) -> ClickedOrbit | None:
         """Start an orbit at section point ``(x, y)`` and draw it; ``None`` if the point is not reachable.
 
-        Runs ``click_collisions`` collisions in chunks of ``chunk``, drawing the
-        section points after each chunk.
+        Runs ``click_collisions`` collisions in chunks of ``chunk``; the section
+        points computed so far are drawn after a chunk whenever
+        ``REDRAW_SECONDS`` have passed since the last drawing, and at the end.
         """
         started = time.perf_counter()
         states, contacts = self.chart.start(self.scene, jnp.float64(x), jnp.float64(y), self.invariants)
@@ -476,7 +481,7 @@ class Explorer:
         (line,) = self.section_axes.plot(first[:, 0], first[:, 1], linestyle="none", marker=".", markersize=1.8,
                                          markeredgewidth=0, color=color, zorder=3)
         (marker,) = self.section_axes.plot([x], [y], marker="+", markersize=9, mew=1.6, color=color, zorder=4)
-        pieces, done = [first], 0
+        pieces, done, drawn = [first], 0, started
         for orb, points in self._orbit_chunks(state0[None], self.click_collisions):
             pieces.append(points[0])
             line.set_data(*np.concatenate(pieces).T)
@@ -484,12 +489,16 @@ class Explorer:
                 self._draw_configuration(state0, Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]),
                                          color)
             done += len(points[0])
-            self._redraw()
+            if time.perf_counter() - drawn > REDRAW_SECONDS:
+                self._say(f"orbit {len(self.orbits) + 1} from ({x:.4g}, {y:.4g}): {done} collisions so far")
+                self._redraw()
+                drawn = time.perf_counter()
         clicked = ClickedOrbit(np.array([x, y], dtype=np.float64), state0, np.concatenate(pieces), done)
         self.orbits.append(clicked)
         self._orbit_lines.append((line, marker))
         self._say(f"orbit {len(self.orbits)} from ({x:.4g}, {y:.4g}): {done} collisions in "
                   f"{time.perf_counter() - started:.2f} s")
+        self._redraw()
         return clicked
 
     def set_parameter(self, name: str, value: float) -> None:
@@ -513,6 +522,7 @@ class Explorer:
         target = pathlib.Path(self.save_path if path is None else path)
         self._say(f"saved {target}")
         self.figure.savefig(target, dpi=110)
+        self._redraw()
         return target
 
     def close(self) -> None:
