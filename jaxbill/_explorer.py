@@ -520,8 +520,8 @@ class Explorer:
     def save(self, path=None) -> pathlib.Path:
         """Write the figure as a PNG to ``path`` (default ``save_path``); return the path."""
         target = pathlib.Path(self.save_path if path is None else path)
+        self.figure.savefig(target, dpi=110)  # with the status line as it was: the picture of what was done
         self._say(f"saved {target}")
-        self.figure.savefig(target, dpi=110)
         self._redraw()
         return target
 
