@@ -225,7 +225,7 @@ WALLS_2D_CHART = SectionChart(
 
 
 def _default_spin(scene) -> float:
-    """``I w_z = 0.6 sqrt(2 I E')`` at ``E' = 1/2``: mixed islands and chaos (README, the wall scenes)."""
+    """``I w_z = 0.6 sqrt(2 I E')`` at ``E' = 1/2``: islands and chaos mixed (docs/accuracy.md, walls)."""
     return 0.6 * math.sqrt(float(scene.inertia))
 
 
