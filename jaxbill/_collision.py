@@ -8,7 +8,7 @@ import jax.numpy as jnp
 
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from . import _lanes as lanes
-from ._step import advance
+from ._step import advance, components
 from ._validation import (
     check_orbit_length,
     check_state,
@@ -46,7 +46,7 @@ def step_function(scene: Scene, state0: jax.Array):
     (check ``scene.is_valid(state0)`` once; later states come from the map).
     Quantities the scene holds fixed along an orbit are computed here once.
     """
-    constants = scene.orbit_constants(state0)
+    constants = scene.orbit_constants(components(state0))
     return lambda state: advance(scene, state, constants)
 
 
@@ -200,9 +200,10 @@ def orbit(scene: Scene, state0: jax.Array, n: int, *, driver: str | None = None)
             12), or a batch of them, shape ``(B, S)``.
         n: number of collisions (a Python int, static: each new ``n`` compiles).
         driver: for a batch, ``"lockstep"`` or ``"lanes"`` (see
-            ``jaxbill._lanes.choose_driver``); ``None``, the default, picks
-            the faster on the platform (``"lockstep"`` on a CPU, ``"lanes"`` on
-            a GPU). Both give the same orbits to rounding.
+            ``jaxbill._lanes.choose_driver``; ``"pallas"`` records no states
+            and stands for ``"lanes"`` here); ``None``, the default, picks
+            the faster on the platform (``"lockstep"`` on a CPU, ``"lanes"``
+            on a GPU). All give the same orbits to rounding.
 
     Returns:
         ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, S)``
@@ -232,5 +233,5 @@ def orbit(scene: Scene, state0: jax.Array, n: int, *, driver: str | None = None)
         from ._sharding import orbit_sharded  # noqa: PLC0415 (_sharding builds on this module)
 
         return orbit_sharded(scene, state0, n, driver=driver)
-    chosen = lanes.choose_driver(jax.devices()[0].platform, driver)
+    chosen = lanes.choose_driver(jax.devices()[0].platform, driver, record="states")
     return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, chosen)

@@ -100,36 +100,66 @@ def search_start(bounds: RootBounds) -> jax.Array:
     return jnp.where((bounds.quiet_in <= 0.0) & (bounds.quiet_out > 0.0), bounds.quiet_out, 0.0)
 
 
-def root_step(gap: jax.Array, slope: jax.Array, bounds: RootBounds, t: jax.Array):
-    """One safe step of the search from time ``t``, given the gaps ``(K,)`` and slopes there.
+def select(values: tuple, index: jax.Array) -> jax.Array:
+    """``values[index]`` for a tuple of same-shaped arrays and a traced ``index`` (no gather)."""
+    chosen = values[-1]
+    for k in range(len(values) - 2, -1, -1):
+        chosen = jnp.where(index == k, values[k], chosen)
+    return chosen
+
+
+def first_smallest(values: tuple) -> jax.Array:
+    """Index (int32) of the first smallest of a tuple of same-shaped arrays, as ``argmin`` (no NaN expected)."""
+    best, index = values[0], jnp.zeros(jnp.shape(values[0]), jnp.int32)
+    for k in range(1, len(values)):
+        smaller = values[k] < best
+        best = jnp.where(smaller, values[k], best)
+        index = jnp.where(smaller, jnp.int32(k), index)
+    return index
+
+
+def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
+    """One safe step of the search from time ``t``, given the K gaps and their slopes there.
+
+    ``gaps`` and ``slopes`` are tuples of K arrays of one shape (one lane's
+    scalars, or a block of lanes): the step is elementwise, with no gather,
+    reduction over K or argmin, so that it runs unchanged under ``vmap`` and
+    inside a Pallas (Triton) kernel.
 
     Returns ``(t_next, index, done)``: the next time (which cannot pass the
-    first root of any gap), the gap it approaches (or the one touching now),
-    and whether the search is over: a root at ``t_next`` (touching now, or
-    bracketed to the time resolution) or a hopeless lane (non-finite values,
-    which end at once rather than make a batch wait out the step bound).
+    first root of any gap), the gap it approaches (or the first one touching
+    now), and whether the search is over: a root at ``t_next`` (touching now,
+    or bracketed to the time resolution) or a hopeless lane (non-finite
+    values, which end at once rather than make a batch wait out the step bound).
 
-    Both drivers of the engine (``jaxbill._lanes``) and ``first_root`` take
-    exactly this step, so every path finds the same root in the same steps.
+    ``first_root`` and both drivers of the engine take exactly this step, so
+    every path finds the same root in the same steps.
     """
     eps = jnp.finfo(jnp.float64).eps
-    g = jnp.maximum(gap, 0.0)
-    touching = (g == 0.0) & (slope < 0.0)
-    s_lo, s_hi = _safe_steps(g, slope, bounds.lower_curv, bounds.upper_curv)
-    index = jnp.argmin(s_lo)
-    s = s_lo[index]
+    clamped = tuple(jnp.maximum(g, 0.0) for g in gaps)
+    steps = [_safe_steps(g, d, bounds.lower_curv, bounds.upper_curv) for g, d in zip(clamped, slopes, strict=True)]
+    s_lo = tuple(lo for lo, _ in steps)
+    index = first_smallest(s_lo)
+    s = select(s_lo, index)
     t_next = t + s
     # A safe step that lands in the quiet interval may jump to its end.
     t_next = jnp.where((t_next >= bounds.quiet_in) & (t_next < bounds.quiet_out), bounds.quiet_out, t_next)
     resolution = _TIME_RESOLUTION_ULPS * eps * jnp.maximum(t, bounds.time_scale)
     # Bracketed to the resolution, or a step below one ulp of t on a
     # falling gap: either way the root is known as well as t can hold it.
-    converged = ((s_hi[index] - s) <= resolution) | ((t_next == t) & (slope[index] < 0.0))
-    touching_now = jnp.any(touching)
-    index = jnp.where(touching_now, jnp.argmax(touching), index)
+    s_hi = select(tuple(hi for _, hi in steps), index)
+    converged = ((s_hi - s) <= resolution) | ((t_next == t) & (select(slopes, index) < 0.0))
+    touching = [(g == 0.0) & (d < 0.0) for g, d in zip(clamped, slopes, strict=True)]
+    touching_now, touching_index = touching[-1], jnp.int32(len(touching) - 1)
+    for k in range(len(touching) - 2, -1, -1):
+        touching_index = jnp.where(touching[k], jnp.int32(k), touching_index)
+        touching_now = touching_now | touching[k]
+    index = jnp.where(touching_now, touching_index, index)
     t_next = jnp.where(touching_now, t, t_next)
-    hopeless = ~jnp.isfinite(t_next) | ~jnp.all(jnp.isfinite(gap) & jnp.isfinite(slope))
-    return t_next, index.astype(jnp.int32), touching_now | converged | hopeless
+    finite = jnp.isfinite(t_next)
+    for g, d in zip(gaps, slopes, strict=True):
+        finite = finite & jnp.isfinite(g) & jnp.isfinite(d)
+    return t_next, index, touching_now | converged | ~finite
 
 
 def first_root(
@@ -140,8 +170,8 @@ def first_root(
     """First time ``t >= 0`` at which one of K gaps reaches zero while falling.
 
     Args:
-        gaps_and_slopes: ``t -> (g, dg)``, each of shape ``(K,)``: the gaps and
-            their time derivatives at time ``t``.
+        gaps_and_slopes: ``t -> (gaps, slopes)``, each a tuple of K scalars:
+            the gaps and their time derivatives at time ``t``.
         bounds: the flight's curvature bounds, quiet interval and time scale.
         max_steps: static bound on the number of steps.
 

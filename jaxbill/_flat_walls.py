@@ -24,8 +24,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import RootBounds
+from ._first_root import RootBounds, first_smallest, select
 from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._step import where
 from ._validation import motion_is_representable as representable
 from ._validation import broadcast_parameters, check_parameter, is_concrete, on_wall_not_inwards, real_parameter
 
@@ -119,21 +120,30 @@ def turn(spin2: jax.Array, t: jax.Array):
 
 
 def gaps_along_flight(profile, t):
-    """The four gaps and their time derivatives after a flight of ``t``.
+    """The four gaps and their time derivatives after a flight of ``t`` (4-tuples).
 
     ``profile = (z0, vz, A, D, W^2, ell, h)``; see the module docstring.
     """
     z0, vz, along, turn_rate, spin2, ell, h = profile
     cos, sinc = turn(spin2, t)
-    a = along * cos + turn_rate * sinc
-    a_slope = turn_rate * cos - along * spin2 * sinc
-    z, z_slope = z0 + vz * t, vz
-    signs = jnp.asarray(END_SIGNS[:2])
-    end_height = z + signs * ell * a
-    end_slope = z_slope + signs * ell * a_slope
-    gap = jnp.concatenate([end_height, h - end_height])
-    slope = jnp.concatenate([end_slope, -end_slope])
-    return gap, slope
+    reach = ell * (along * cos + turn_rate * sinc)
+    reach_slope = ell * (turn_rate * cos - along * spin2 * sinc)
+    z = z0 + vz * t
+    return end_gaps(z, reach, h), end_gaps_closing(vz, reach_slope, -1.0)
+
+
+def end_gaps(z, reach, h) -> tuple:
+    """``(z1, z2, h - z1, h - z2)`` for end heights ``z1, z2 = z +- reach``."""
+    return z + reach, z - reach, h - (z + reach), h - (z - reach)
+
+
+def end_gaps_closing(rise, reach_rise, sign) -> tuple:
+    """The rates of the four gaps for end rises ``rise +- reach_rise``, times ``-sign``.
+
+    ``sign = -1``: the gaps' time derivatives; ``sign = +1``: the rates at which
+    they close (the approach speeds).
+    """
+    return -sign * (rise + reach_rise), -sign * (rise - reach_rise), sign * (rise + reach_rise), sign * (rise - reach_rise)
 
 
 def _band_crossing(z0, vz, low, high):
@@ -164,41 +174,47 @@ def search_bounds(profile) -> RootBounds:
     return RootBounds(curvature, curvature, quiet_in, quiet_out, time_scale)
 
 
-def straight_contact_time(gaps: jax.Array, closing_speeds: jax.Array):
+def straight_contact_time(gaps: tuple, closing_speeds: tuple):
     """First contact when every gap is linear in time: ``(t, gap index)``."""
-    closing = closing_speeds > 0.0
-    safe_speeds = jnp.where(closing, closing_speeds, 1.0)
-    times = jnp.where(closing, jnp.maximum(gaps, 0.0) / safe_speeds, jnp.inf)
-    index = jnp.argmin(times)
-    return times[index], index
+    times = []
+    for gap, speed in zip(gaps, closing_speeds, strict=True):
+        closing = speed > 0.0
+        times.append(jnp.where(closing, jnp.maximum(gap, 0.0) / jnp.where(closing, speed, 1.0), jnp.inf))
+    index = first_smallest(tuple(times))
+    return select(tuple(times), index), index
 
 
 # -- contacts -------------------------------------------------------------------
 
 
-def resolve_contact(scene, state: jax.Array, index: jax.Array):
+def resolve_contact(scene, state: tuple, index: jax.Array):
     """Apply the impulse of gap ``index``; a simultaneous contact of the other end too.
 
-    ``scene`` provides ``gaps``, ``approach_speeds`` and ``kick(state, gap)``.
-    At most one gap per end can vanish (``h > 0``), so a second contact is the
-    other end on either wall: the faster-approaching of the two is kicked first,
-    the other after it if it still approaches (as for a lens corner).
+    ``scene`` provides, on components, ``end_gaps``, ``end_approach_speeds``
+    and ``kick(state, gap)``. At most one gap per end can vanish (``h > 0``),
+    so a second contact is the other end on either wall: the faster-approaching
+    of the two is kicked first, the other after it if it still approaches (as
+    for a lens corner).
     """
-    gaps = scene.gaps(state)
-    speeds = scene.approach_speeds(state)
-    end = index % 2
-    other_end = 1 - end
+    gaps = scene.end_gaps(state)
+    speeds = scene.end_approach_speeds(state)
+    other_end = jnp.where((index == 0) | (index == 2), 1, 0)
     # The other end's nearer wall.
-    other = jnp.where(gaps[other_end] <= gaps[other_end + 2], other_end, other_end + 2)
-    several = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * scene.h) & (speeds[other] > 0.0)
-    first = jnp.where(several & (speeds[other] > speeds[index]), other, index)
+    other = jnp.where(select(gaps, other_end) <= select(gaps, other_end + 2), other_end, other_end + 2)
+    gap_other, speed_other = select(gaps, other), select(speeds, other)
+    several = (gap_other <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * scene.h) & (speed_other > 0.0)
+    first = jnp.where(several & (speed_other > select(speeds, index)), other, index)
     second = jnp.where(first == index, other, index)
-    state = scene.kick(state, first)
-    still_approaching = scene.approach_speeds(state)[second] > 0.0
-    state = jnp.where(several & still_approaching, scene.kick(state, second), state)
-    codes = jnp.asarray(_CONTACT_CODES, dtype=jnp.int32)
-    contact = jnp.where(several, jnp.int32(SEVERAL_CONTACTS), codes[index])
-    return state, contact
+    kicked = scene.kick(state, first)
+    still_approaching = select(scene.end_approach_speeds(kicked), second) > 0.0
+    kicked = where(several & still_approaching, scene.kick(kicked, second), kicked)
+    contact = jnp.where(several, jnp.int32(SEVERAL_CONTACTS), select(tuple(jnp.int32(c) for c in _CONTACT_CODES), index))
+    return kicked, contact
+
+
+def end_sign(gap: jax.Array) -> jax.Array:
+    """``e_k`` of gap ``gap`` (0..3): +1 for end P1, -1 for end P2."""
+    return jnp.where((gap == 0) | (gap == 2), 1.0, -1.0)
 
 
 def state_is_inside(scene, state) -> jax.Array:

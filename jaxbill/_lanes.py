@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ._step import MAX_ROOT_STEPS, begin_flight, end_and_begin, search_step
+from ._step import MAX_ROOT_STEPS, begin_flight, components, end_and_begin, search_step, stacked
 
 # Contact codes counted one by one in the running statistics: every scene's codes
 # lie in -4..4 (StickInCircle: -1, 0, 1, 2; the wall scenes add -3, 3). A code
@@ -144,7 +144,7 @@ def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, s
     than every lane paying for it every turn.
     """
     width = states0.shape[0]
-    constants = jax.vmap(scene.orbit_constants)(states0)
+    constants = jax.vmap(lambda s: scene.orbit_constants(components(s)))(states0)
     drift = jax.vmap(lambda s0, s: energy_drift(scene, s0)(s))
     end_and_begin_lanes = jax.vmap(lambda lane, active, c: end_and_begin(scene, lane, active, c))
     step_lanes = jax.vmap(lambda lane: search_step(scene, lane))
@@ -154,7 +154,8 @@ def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, s
 
     def finish(loop):
         lanes, carry, done, records = loop
-        lanes, (collided, new_state, dt, contact) = end_and_begin_lanes(lanes, done < steps, constants)
+        lanes, (collided, new_parts, dt, contact) = end_and_begin_lanes(lanes, done < steps, constants)
+        new_state = stacked(new_parts)
         hit = collided[:, None]
         after = Carry(
             state=jnp.where(hit, new_state, carry.state),
@@ -182,7 +183,7 @@ def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, s
         lanes, carry, done, records = loop
         return step_lanes(lanes), carry, done, records
 
-    lanes = jax.vmap(lambda s, c: begin_flight(scene, s, c))(carry.state, constants)
+    lanes = jax.vmap(lambda s, c: begin_flight(scene, components(s), c))(carry.state, constants)
     loop = (lanes, carry, jnp.zeros(width, jnp.int32), _empty_records(plan, scene, states0))
     _, carry, _, records = jax.lax.while_loop(not_finished, one_turn, loop)
     return carry, records
@@ -215,22 +216,27 @@ def run_blocks(plan: Plan, width: int):
     return run
 
 
-DRIVERS = ("lockstep", "lanes")
+DRIVERS = ("lockstep", "lanes", "pallas")
 
 
-def choose_driver(platform: str, driver: str | None = None) -> str:
+def choose_driver(platform: str, driver: str | None = None, record: str = "final") -> str:
     """The batch driver: ``driver`` if given, else the one measured fastest on ``platform`` (``"cpu"``, ``"gpu"``, ...).
 
     ``"lockstep"``: a vmapped loop of whole collisions, in lanes of
     ``scene.batch_chunk`` orbits: each root step waits for the lane's slowest
-    orbit, but a turn is cheap, and on a CPU it is the faster of the two
-    (measured in ``benchmarks/bench_drivers.py``). ``"lanes"``: the state
-    machine of this module, in which no orbit waits for another: what a GPU
-    needs, where the lockstep loop leaves all but a few threads idle.
-    Both give the same orbits to rounding, with the same contacts.
+    orbit, but a turn is cheap, and on a CPU it is the fastest
+    (``benchmarks/bench_drivers.py``). ``"lanes"``: the state machine of this
+    module in an XLA loop, in which no orbit waits for another. ``"pallas"``:
+    the same state machine inside one Pallas kernel, a block of orbits in
+    registers (``jaxbill._pallas``): the default on a GPU; it records final
+    states and statistics only, so records of states or sections take
+    ``"lanes"``. On a CPU ``"pallas"`` runs in Pallas's interpreter (slow: for
+    tests). All give the same orbits to rounding, with the same contacts.
     """
     if driver is None:
-        return "lockstep" if platform == "cpu" else "lanes"
-    if driver not in DRIVERS:
+        driver = "lockstep" if platform == "cpu" else "pallas"
+    elif driver not in DRIVERS:
         raise ValueError(f"driver must be one of {DRIVERS} or None (the platform's default); got {driver!r}")
+    if driver == "pallas" and record != "final":
+        return "lanes"
     return driver

@@ -89,6 +89,15 @@ class Scene(Protocol):
         """Kinetic energy ``(...)``."""
 
 
+def component(state, i: int):
+    """Component ``i`` of a state: ``state[..., i]`` of an array ``(..., S)``, ``state[i]`` of a tuple of components.
+
+    Lets one formula (an energy, say) serve both the analyses, which hold
+    states as arrays, and the engine's drivers, which hold them as components.
+    """
+    return state[i] if isinstance(state, tuple) else state[..., i]
+
+
 def _states(scene: Scene, state) -> jax.Array:
     """``state`` as an array ``(..., S)``; ValueError for another last axis or a non-real dtype (static)."""
     from ._validation import as_states  # noqa: PLC0415 (_validation imports this module)

@@ -152,7 +152,7 @@ def orbit_sharded(
         raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
     _check_eagerly(scene, states0)
     mesh = orbit_mesh(devices)
-    driver = choose_driver(mesh.devices.flat[0].platform, driver)
+    driver = choose_driver(mesh.devices.flat[0].platform, driver, record="states")
     batch = states0.shape[0]
     padded = pad_batch(states0, padded_batch_size(batch, scene.batch_chunk, mesh))
     scene_on_mesh = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)

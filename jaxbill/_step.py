@@ -1,13 +1,18 @@
 """One collision of any scene, built from the scene's own pieces: the reference every driver runs.
 
 A scene answers four questions about one orbit (all pure, traceable functions
-of one orbit's values; see ``jaxbill._scene.Scene``):
+of one orbit's values; see ``jaxbill._scene.Scene``). A state is passed to them
+as its *components*, a tuple of ``S`` scalars (or of equal-shaped arrays, one
+element per orbit), and they return tuples: no slicing, stacking, gathering or
+reduction over a state or over the gaps, so that the same functions run under
+``vmap`` in XLA and, a block of orbits at a time, inside a Pallas (Triton)
+kernel, which lowers none of those.
 
 * ``scene.root_search(state) -> (profile, RootBounds)``: for a scene whose gaps
   are transcendental in time (a turning stick), what its gaps depend on along
   the flight from ``state`` and the bounds the safe-step search needs;
-* ``scene.gaps_along_flight(profile, t) -> (gap, slope)``: the gaps ``(K,)``
-  and their time derivatives after a flight of ``t``;
+* ``scene.gaps_along_flight(profile, t) -> (gaps, slopes)``: the K gaps and
+  their time derivatives after a flight of ``t``, as two K-tuples;
 * ``scene.closed_form_contact(state, constants) -> (t, index)``: for a scene
   whose gaps are polynomials in time (a static body, a point), the contact
   time directly;
@@ -38,7 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import RootBounds, first_root, root_step, search_start
+from ._first_root import RootBounds, first_root, root_step, search_start, select
 from ._scene import NO_CONTACT
 
 # Static bound on root-search steps per collision. Typical collisions take a
@@ -46,12 +51,27 @@ from ._scene import NO_CONTACT
 MAX_ROOT_STEPS = 4096
 
 
-def finish_step(state, moved_and_kicked, t, contact, ok):
+def components(state: jax.Array) -> tuple:
+    """The tuple of a state's ``S`` components: ``state[..., i]`` for each ``i``."""
+    return tuple(state[..., i] for i in range(state.shape[-1]))
+
+
+def stacked(parts: tuple) -> jax.Array:
+    """A state ``(..., S)`` from its components (the inverse of ``components``)."""
+    return jnp.stack(parts, axis=-1)
+
+
+def where(condition, if_true: tuple, if_false: tuple) -> tuple:
+    """``jnp.where`` component by component."""
+    return tuple(jnp.where(condition, a, b) for a, b in zip(if_true, if_false, strict=True))
+
+
+def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok):
     """A collision's result: unchanged for a flight that never ends, NaN for a failed search."""
     reached = jnp.isfinite(t)
-    new_state = jnp.where(reached, moved_and_kicked, state)
+    new_state = where(reached, moved_and_kicked, state)
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
-    new_state = jnp.where(ok, new_state, jnp.nan)
+    new_state = tuple(jnp.where(ok, a, jnp.nan) for a in new_state)
     contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
     return new_state, jnp.where(ok, t, jnp.nan), contact
 
@@ -60,7 +80,7 @@ def finish_step(state, moved_and_kicked, t, contact, ok):
 
 
 @jax.custom_jvp
-def searched_contact_time(scene, state):
+def searched_contact_time(scene, state: tuple):
     """First contact of a turning body: ``(t, gap index, ok)`` (``t = inf``: never; ``ok``: within the step bound)."""
     profile, bounds = scene.root_search(state)
     t, index, _, ok = first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, MAX_ROOT_STEPS)
@@ -78,29 +98,31 @@ def _searched_contact_time_jvp(primals, tangents):
 
     def gap_at_root(scene_, state_):
         profile, _ = scene_.root_search(state_)
-        return scene_.gaps_along_flight(profile, t_safe)[0][index]
+        return select(scene_.gaps_along_flight(profile, t_safe)[0], index)
 
     _, gap_tangent = jax.jvp(gap_at_root, primals, tangents)
     profile, _ = scene.root_search(state)
-    slope = scene.gaps_along_flight(profile, t_safe)[1][index]
+    slope = select(scene.gaps_along_flight(profile, t_safe)[1], index)
     t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
     zero = np.zeros((), dtype=jax.dtypes.float0)
     return (t, index, ok), (t_tangent, zero, zero)
 
 
 def advance(scene, state: jax.Array, constants: Any):
-    """``(new_state, dt, contact)``: the flight from ``state`` to the next collision and its impulse.
+    """``(new_state, dt, contact)``: the flight from ``state`` ``(S,)`` to the next collision and its impulse.
 
     For a state known to be valid; ``constants`` are ``scene.orbit_constants``
-    of the orbit's first state.
+    of the orbit's first state (its components).
     """
+    parts = components(state)
     if scene.searches_for_roots:
-        t, index, ok = searched_contact_time(scene, state)
+        t, index, ok = searched_contact_time(scene, parts)
     else:
-        t, index = scene.closed_form_contact(state, constants)
+        t, index = scene.closed_form_contact(parts, constants)
         ok = jnp.array(True)
-    kicked, contact = scene.collide_at(state, jnp.where(jnp.isfinite(t), t, 0.0), index, constants)
-    return finish_step(state, kicked, t, contact, ok)
+    kicked, contact = scene.collide_at(parts, jnp.where(jnp.isfinite(t), t, 0.0), index, constants)
+    new_state, t, contact = finish_step(parts, kicked, t, contact, ok)
+    return stacked(new_state), t, contact
 
 
 # -- the lane state machine ---------------------------------------------------------
@@ -110,8 +132,8 @@ class Lane(NamedTuple):
     """One orbit in flight, between two root steps.
 
     Attributes:
-        state: ``(S,)`` the state at the start of the flight (just after the
-            last collision).
+        state: the components of the state at the start of the flight (just
+            after the last collision).
         t: ``()`` the search's current time along the flight (for a
             closed-form scene, the contact time).
         index: ``()`` int32, the gap the search approaches (or found).
@@ -131,14 +153,17 @@ class Lane(NamedTuple):
     bounds: Any
 
 
-def begin_flight(scene, state: jax.Array, constants: Any) -> Lane:
-    """A lane about to search for the contact that ends the flight from ``state``."""
+def begin_flight(scene, state: tuple, constants: Any) -> Lane:
+    """A lane about to search for the contact that ends the flight from ``state`` (components)."""
     if scene.searches_for_roots:
         profile, bounds = scene.root_search(state)
         t = search_start(bounds)
-        return Lane(state, t, jnp.int32(0), jnp.isinf(t), jnp.int32(0), profile, bounds)
+        none = jnp.zeros(jnp.shape(t), jnp.int32)
+        return Lane(state, t, none, jnp.isinf(t), none, profile, bounds)
     t, index = scene.closed_form_contact(state, constants)
-    return Lane(state, t, jnp.asarray(index, jnp.int32), jnp.array(True), jnp.int32(0), None, None)
+    # Shapes from t, not scalar literals: inside a kernel every lane field is a block.
+    return Lane(state, t, index.astype(jnp.int32), jnp.isfinite(t) | jnp.isnan(t) | jnp.isinf(t),
+                jnp.zeros(jnp.shape(t), jnp.int32), None, None)
 
 
 def search_step(scene, lane: Lane) -> Lane:
@@ -157,13 +182,15 @@ def search_step(scene, lane: Lane) -> Lane:
 
 
 def end_flight(scene, lane: Lane, constants: Any):
-    """``(new_state, dt, contact)`` of a lane whose search is over (or hit the step bound), as ``advance``."""
+    """``(new_state, dt, contact)`` of a lane whose search is over (or hit the step bound), as ``advance``
+    (``new_state`` as components)."""
     t = lane.t
     kicked, contact = scene.collide_at(lane.state, jnp.where(jnp.isfinite(t), t, 0.0), lane.index, constants)
     return finish_step(lane.state, kicked, t, contact, lane.found)
 
 
 def tree_where(condition, if_true, if_false):
+    """``jnp.where`` leaf by leaf over two pytrees of one structure."""
     return jax.tree.map(lambda a, b: jnp.where(condition, a, b), if_true, if_false)
 
 

@@ -27,6 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _flat_walls as walls
+from ._scene import component
+from ._step import components, stacked
 from ._validation import require_x64
 
 
@@ -98,32 +100,47 @@ class StickBetweenWalls2D(eqx.Module):
         return None
 
     # -- the engine's questions (see jaxbill._step) -------------------------------
+    # States are components (x, z, theta, vx, vz, omega); results are tuples.
 
     @property
     def searches_for_roots(self) -> bool:
         """A turning stick's end heights are sinusoids; a static one's are lines (closed form)."""
         return self.kind == "rotor"
 
-    def root_search(self, state: jax.Array):
+    def root_search(self, state: tuple):
         """``(vertical profile, RootBounds)`` of the flight from ``state``."""
         profile = self.vertical_profile(state)
         return profile, walls.search_bounds(profile)
 
     def gaps_along_flight(self, profile, t: jax.Array):
-        """The four gaps and their time derivatives after a flight of ``t``, each ``(4,)``."""
+        """The four gaps and their time derivatives after a flight of ``t`` (4-tuples)."""
         return walls.gaps_along_flight(profile, t)
 
-    def closed_form_contact(self, state: jax.Array, constants: None = None):
+    def closed_form_contact(self, state: tuple, constants: None = None):
         """``(t, index)`` for a stick that never turns: every gap is linear in time."""
-        return walls.straight_contact_time(self.gaps(state), self.approach_speeds(state))
+        return walls.straight_contact_time(self.end_gaps(state), self.end_approach_speeds(state))
 
-    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, constants: None = None):
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: None = None):
         """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``jaxbill._flat_walls``)."""
-        return walls.resolve_contact(self, self.flight(state, t), index)
+        return walls.resolve_contact(self, self._flight(state, t), index)
+
+    def end_gaps(self, state: tuple) -> tuple:
+        """``(z1, z2, h - z1, h - z2)`` of the components."""
+        return walls.end_gaps(state[1], self.ell * jnp.cos(state[2]), self.h)
+
+    def end_approach_speeds(self, state: tuple) -> tuple:
+        """The rates at which the four gaps close (> 0: that end approaches that wall)."""
+        return walls.end_gaps_closing(state[4], -self.ell * jnp.sin(state[2]) * state[5], 1.0)
+
+    def _flight(self, state: tuple, t) -> tuple:
+        x, z, theta, vx, vz, omega = state
+        if self.kind == "rotor":
+            theta = jnp.remainder(theta + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        return x + vx * t, z + vz * t, theta, vx, vz, omega
 
     # -- geometry and flight -------------------------------------------------------
 
-    def vertical_profile(self, state: jax.Array):
+    def vertical_profile(self, state):
         """``(z0, vz, A, D, W^2, ell, h)`` of ``jaxbill._flat_walls``: ``a = cos theta``."""
         theta, omega = state[2], state[5]
         return (state[1], state[4], jnp.cos(theta), -omega * jnp.sin(theta), omega * omega, self.ell, self.h)
@@ -136,25 +153,18 @@ class StickBetweenWalls2D(eqx.Module):
 
     def gaps(self, state: jax.Array) -> jax.Array:
         """``[z1, z2, h - z1, h - z2]``, shape ``(..., 4)``, >= 0 inside (length units)."""
-        reach = self.ell * jnp.cos(state[..., 2])
-        heights = jnp.stack([state[..., 1] + reach, state[..., 1] - reach], axis=-1)
-        return jnp.concatenate([heights, self.h[..., None] - heights], axis=-1)
+        return jnp.stack(self.end_gaps(components(state)), axis=-1)
 
     def approach_speeds(self, state: jax.Array) -> jax.Array:
         """Rate at which each gap closes, shape ``(..., 4)`` (> 0: the end approaches that wall)."""
-        turn = self.ell * jnp.sin(state[..., 2]) * state[..., 5]
-        rise = jnp.stack([state[..., 4] - turn, state[..., 4] + turn], axis=-1)
-        return jnp.concatenate([-rise, rise], axis=-1)
+        return jnp.stack(self.end_approach_speeds(components(state)), axis=-1)
 
     def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
         """Free flight for time ``t``; ``theta`` is wrapped into ``[-pi, pi)``."""
-        x, z, theta, vx, vz, omega = (state[..., i] for i in range(6))
-        if self.kind == "rotor":
-            theta = jnp.remainder(theta + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
-        return jnp.stack([x + vx * t, z + vz * t, theta, vx, vz, omega], axis=-1)
+        return stacked(self._flight(components(state), t))
 
-    def kick(self, state: jax.Array, gap: jax.Array) -> jax.Array:
-        """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3).
+    def kick(self, state: tuple, gap: jax.Array) -> tuple:
+        """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3), on components.
 
         The impulse ``J`` is vertical. With the end's height ``z_k = z + e_k
         ell cos theta`` and ``s = dz_k/dtheta = -e_k ell sin theta``, the end's
@@ -162,22 +172,22 @@ class StickBetweenWalls2D(eqx.Module):
         ``J = -2 (vz + s omega) / (1/M + s^2/I)``, ``vz' = vz + J/M``,
         ``omega' = omega + s J / I``. Energy is conserved exactly.
         """
-        x, z, theta, vx, vz, omega = (state[i] for i in range(6))
-        end_sign = jnp.asarray(walls.END_SIGNS)[gap]
-        lever = -end_sign * self.ell * jnp.sin(theta)
+        x, z, theta, vx, vz, omega = state
+        lever = -walls.end_sign(gap) * self.ell * jnp.sin(theta)
         inv_mass = 1.0 / self.mass
         inv_inertia = 1.0 / self.inertia if self.kind == "rotor" else jnp.zeros_like(self.inertia)
         impulse = -2.0 * (vz + lever * omega) / (inv_mass + lever * lever * inv_inertia)
-        return jnp.stack([x, z, theta, vx, vz + impulse * inv_mass, omega + impulse * inv_inertia * lever])
+        return x, z, theta, vx, vz + impulse * inv_mass, omega + impulse * inv_inertia * lever
 
     # -- invariants -------------------------------------------------------------------
 
     def energy(self, state: jax.Array) -> jax.Array:
         """``M (vx^2 + vz^2)/2 + I omega^2/2`` (a stick that never turns drops the spin term)."""
-        e = 0.5 * self.mass * (state[..., 3] ** 2 + state[..., 4] ** 2)
+        vx, vz, omega = (component(state, i) for i in (3, 4, 5))
+        e = 0.5 * self.mass * (vx**2 + vz**2)
         if self.kind == "static":
             return e
-        return e + 0.5 * self.inertia * state[..., 5] ** 2
+        return e + 0.5 * self.inertia * omega**2
 
     # == analysis (tangent maps, Lyapunov spectra, periodic orbits: jaxbill._tangent) ======
     # Added for the analysis modules; the engine above does not use these.

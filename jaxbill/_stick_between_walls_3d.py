@@ -32,6 +32,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _flat_walls as walls
+from ._scene import component
+from ._step import components, stacked
 from ._validation import require_x64
 
 # Tolerance on |u| = 1 and w . u = 0 in a given state (relative).
@@ -116,30 +118,53 @@ class StickBetweenWalls3D(eqx.Module):
         return None
 
     # -- the engine's questions (see jaxbill._step) -------------------------------
+    # States are components (x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz);
+    # results are tuples.
 
     @property
     def searches_for_roots(self) -> bool:
         """A turning stick's end heights are sinusoids; a static one's are lines (closed form)."""
         return self.kind == "rotor"
 
-    def root_search(self, state: jax.Array):
+    def root_search(self, state: tuple):
         """``(vertical profile, RootBounds)`` of the flight from ``state``."""
         profile = self.vertical_profile(state)
         return profile, walls.search_bounds(profile)
 
     def gaps_along_flight(self, profile, t: jax.Array):
-        """The four gaps and their time derivatives after a flight of ``t``, each ``(4,)``."""
+        """The four gaps and their time derivatives after a flight of ``t`` (4-tuples)."""
         return walls.gaps_along_flight(profile, t)
 
-    def closed_form_contact(self, state: jax.Array, constants: None = None):
+    def closed_form_contact(self, state: tuple, constants: None = None):
         """``(t, index)`` for a stick that never turns: every gap is linear in time."""
-        return walls.straight_contact_time(self.gaps(state), self.approach_speeds(state))
+        return walls.straight_contact_time(self.end_gaps(state), self.end_approach_speeds(state))
 
-    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, constants: None = None):
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: None = None):
         """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``jaxbill._flat_walls``)."""
-        return walls.resolve_contact(self, self._renormalised(self.flight(state, t)), index)
+        return walls.resolve_contact(self, self._renormalised(self._flight(state, t)), index)
 
-    def _renormalised(self, state: jax.Array) -> jax.Array:
+    def end_gaps(self, state: tuple) -> tuple:
+        """``(z1, z2, h - z1, h - z2)`` of the components."""
+        return walls.end_gaps(state[2], self.ell * state[5], self.h)
+
+    def end_approach_speeds(self, state: tuple) -> tuple:
+        """The rates at which the four gaps close (> 0: that end approaches that wall)."""
+        _, _, _, ux, uy, _, _, _, vz, wx, wy, _ = state
+        return walls.end_gaps_closing(vz, self.ell * (wx * uy - wy * ux), 1.0)
+
+    def _flight(self, state: tuple, t) -> tuple:
+        """``c + v t``, ``u`` turned about ``w`` by ``|w| t``."""
+        x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz = state
+        if self.kind == "rotor":
+            cos, sinc = walls.turn(wx * wx + wy * wy + wz * wz, t)
+            ux, uy, uz = (
+                ux * cos + (wy * uz - wz * uy) * sinc,
+                uy * cos + (wz * ux - wx * uz) * sinc,
+                uz * cos + (wx * uy - wy * ux) * sinc,
+            )
+        return x + vx * t, y + vy * t, z + vz * t, ux, uy, uz, vx, vy, vz, wx, wy, wz
+
+    def _renormalised(self, state: tuple) -> tuple:
         """``u`` back to unit length and ``w`` back perpendicular to it.
 
         Rounding in the flight moves both by ulps per collision; left alone that
@@ -147,16 +172,18 @@ class StickBetweenWalls3D(eqx.Module):
         """
         if self.kind == "static":
             return state
-        u = state[3:6] / jnp.linalg.norm(state[3:6])
-        w = state[9:12] - (state[9:12] @ u) * u
-        return jnp.concatenate([state[0:3], u, state[6:9], w])
+        x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz = state
+        norm = jnp.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        along = wx * ux + wy * uy + wz * uz
+        return x, y, z, ux, uy, uz, vx, vy, vz, wx - along * ux, wy - along * uy, wz - along * uz
 
     # -- geometry and flight -------------------------------------------------------
 
-    def vertical_profile(self, state: jax.Array):
+    def vertical_profile(self, state):
         """``(z0, vz, A, D, W^2, ell, h)`` of ``jaxbill._flat_walls``: ``a = uz``."""
-        u, w = state[3:6], state[9:12]
-        return (state[2], state[8], u[2], w[0] * u[1] - w[1] * u[0], w @ w, self.ell, self.h)
+        _, _, z, ux, uy, uz, _, _, vz, wx, wy, wz = state
+        return (z, vz, uz, wx * uy - wy * ux, wx * wx + wy * wy + wz * wz, self.ell, self.h)
 
     def end_points(self, state: jax.Array) -> jax.Array:
         """Ends ``[P1, P2]``, shape ``(..., 2, 3)``."""
@@ -166,52 +193,44 @@ class StickBetweenWalls3D(eqx.Module):
 
     def gaps(self, state: jax.Array) -> jax.Array:
         """``[z1, z2, h - z1, h - z2]``, shape ``(..., 4)``, >= 0 inside (length units)."""
-        reach = self.ell * state[..., 5]
-        heights = jnp.stack([state[..., 2] + reach, state[..., 2] - reach], axis=-1)
-        return jnp.concatenate([heights, self.h[..., None] - heights], axis=-1)
+        return jnp.stack(self.end_gaps(components(state)), axis=-1)
 
     def approach_speeds(self, state: jax.Array) -> jax.Array:
         """Rate at which each gap closes, shape ``(..., 4)`` (> 0: the end approaches that wall)."""
-        u, w = state[..., 3:6], state[..., 9:12]
-        turn = self.ell * (w[..., 0] * u[..., 1] - w[..., 1] * u[..., 0])
-        rise = jnp.stack([state[..., 8] + turn, state[..., 8] - turn], axis=-1)
-        return jnp.concatenate([-rise, rise], axis=-1)
+        return jnp.stack(self.end_approach_speeds(components(state)), axis=-1)
 
     def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
         """Free flight for time ``t``: ``c + v t``, ``u`` turned about ``w`` by ``|w| t``."""
-        c, u, v, w = state[..., 0:3], state[..., 3:6], state[..., 6:9], state[..., 9:12]
-        if self.kind == "rotor":
-            cos, sinc = walls.turn(jnp.sum(w * w, axis=-1), t)
-            u = u * cos[..., None] + jnp.cross(w, u) * sinc[..., None]
-        return jnp.concatenate([c + v * jnp.asarray(t)[..., None], u, v, w], axis=-1)
+        return stacked(self._flight(components(state), t))
 
-    def kick(self, state: jax.Array, gap: jax.Array) -> jax.Array:
-        """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3).
+    def kick(self, state: tuple, gap: jax.Array) -> tuple:
+        """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3), on components.
 
         The impulse ``J zhat`` acts at ``r = e_k ell u``. The end's vertical
         velocity ``vz + (w x r)_z`` reverses:
         ``J = -2 (vz + (w x r)_z) / (1/M + |r x zhat|^2 / I)``,
         ``v' = v + (J/M) zhat``, ``w' = w + (J/I) (r x zhat)``.
         """
-        u, w = state[3:6], state[9:12]
-        arm = jnp.asarray(walls.END_SIGNS)[gap] * self.ell
-        lever = arm * jnp.stack([u[1], -u[0], jnp.zeros_like(u[0])])  # r x zhat
+        x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz = state
+        arm = walls.end_sign(gap) * self.ell
+        lever_x, lever_y = arm * uy, -arm * ux  # r x zhat (its z component is 0)
         inv_mass = 1.0 / self.mass
         inv_inertia = 1.0 / self.inertia if self.kind == "rotor" else jnp.zeros_like(self.inertia)
-        end_rise = state[8] + arm * (w[0] * u[1] - w[1] * u[0])
-        impulse = -2.0 * end_rise / (inv_mass + (lever @ lever) * inv_inertia)
-        v = state[6:9].at[2].add(impulse * inv_mass)
-        return jnp.concatenate([state[0:6], v, w + impulse * inv_inertia * lever])
+        end_rise = vz + arm * (wx * uy - wy * ux)
+        impulse = -2.0 * end_rise / (inv_mass + (lever_x * lever_x + lever_y * lever_y) * inv_inertia)
+        spin_kick = impulse * inv_inertia
+        return (x, y, z, ux, uy, uz, vx, vy, vz + impulse * inv_mass,
+                wx + spin_kick * lever_x, wy + spin_kick * lever_y, wz)
 
     # -- invariants -------------------------------------------------------------------
 
     def energy(self, state: jax.Array) -> jax.Array:
         """``M |v|^2/2 + I |w|^2/2`` (a stick that never turns drops the spin term)."""
-        v, w = state[..., 6:9], state[..., 9:12]
-        e = 0.5 * self.mass * jnp.sum(v * v, axis=-1)
+        vx, vy, vz, wx, wy, wz = (component(state, i) for i in range(6, 12))
+        e = 0.5 * self.mass * (vx**2 + vy**2 + vz**2)
         if self.kind == "static":
             return e
-        return e + 0.5 * self.inertia * jnp.sum(w * w, axis=-1)
+        return e + 0.5 * self.inertia * (wx**2 + wy**2 + wz**2)
 
     def angular_momentum(self, state: jax.Array) -> jax.Array:
         """The conserved vertical angular momentum ``L_z = M (x vy - y vx) + I wz``."""

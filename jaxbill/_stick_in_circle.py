@@ -20,8 +20,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import RootBounds
-from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._first_root import RootBounds, first_smallest, select
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, component
+from ._step import components, stacked, where
 from ._validation import (
     broadcast_parameters,
     check_parameter,
@@ -31,8 +32,6 @@ from ._validation import (
     real_parameter,
     require_x64,
 )
-
-_ENDS = (1.0, -1.0)  # contact index 0 -> end P1 (+1), index 1 -> end P2 (-1)
 
 # A second end within this many ulps of R^2 of the wall at a contact touches it
 # at the same instant (a lens corner): both impulses are applied in one event.
@@ -199,76 +198,74 @@ class StickInCircle(eqx.Module):
         """Traceable: ``|v|^2``, ``omega^2`` and the energy are ordinary float64 numbers (``jaxbill._validation``)."""
         return motion_is_representable(state[..., 3:5], state[..., 5] ** 2, self.energy(state), self.R)
 
-    def orbit_constants(self, state0: jax.Array) -> jax.Array | None:
-        """The static lens never turns: its direction ``u`` serves a whole orbit."""
-        return self.direction(state0) if self.kind == "lens" else None
+    def orbit_constants(self, state0: tuple):
+        """The static lens never turns: its direction ``(ux, uy)`` serves a whole orbit (``state0``: components)."""
+        return _direction(self.kind, state0[2]) if self.kind == "lens" else None
 
     # -- the engine's questions (see jaxbill._step) -----------------------------
+    # States are components (x, y, alpha, vx, vy, omega): scalars, or arrays of
+    # one shape (a block of orbits inside a kernel); results are tuples.
 
     @property
     def searches_for_roots(self) -> bool:
         """A spinning stick's gaps are transcendental in time; the lens's and the circle's are quadratics."""
         return self.kind == "rotor"
 
-    def root_search(self, state: jax.Array):
+    def root_search(self, state: tuple):
         """``(profile, RootBounds)`` of the flight from ``state`` (the profile is the state itself)."""
         return state, _rotor_bounds(self, state)
 
-    def gaps_along_flight(self, state: jax.Array, t: jax.Array):
-        """Both ends' gaps and their time derivatives after a flight of ``t``, each ``(2,)``."""
-        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
+    def gaps_along_flight(self, state: tuple, t: jax.Array):
+        """Both ends' gaps ``R^2 - |P_k|^2`` and their time derivatives after a flight of ``t`` (2-tuples)."""
+        x, y, alpha, vx, vy, omega = state
         cx, cy = x + vx * t, y + vy * t
         phi = alpha + omega * t
         cu, su = jnp.cos(phi), jnp.sin(phi)
         centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
         centre_slope = -2.0 * (cx * vx + cy * vy)
-        along = cx * cu + cy * su
-        along_slope = vx * cu + vy * su + omega * (cy * cu - cx * su)
-        ends = jnp.asarray(_ENDS)
-        gap = centre_gap - 2.0 * self.ell * ends * along
-        slope = centre_slope - 2.0 * self.ell * ends * along_slope
-        return gap, slope
+        along = 2.0 * self.ell * (cx * cu + cy * su)
+        along_slope = 2.0 * self.ell * (vx * cu + vy * su + omega * (cy * cu - cx * su))
+        return (centre_gap - along, centre_gap + along), (centre_slope - along_slope, centre_slope + along_slope)
 
-    def closed_form_contact(self, state: jax.Array, lens_direction: jax.Array | None):
+    def closed_form_contact(self, state: tuple, lens_direction):
         """``(t, index)`` for the lens and the circle: each end (the centre) moves on a line."""
-        c, v = state[0:2], state[3:5]
+        x, y, _, vx, vy, _ = state
         if self.kind == "circle":
-            return _exit_time(c, v, self.R), jnp.int32(0)
-        u = self.direction(state) if lens_direction is None else lens_direction
-        times = jnp.stack([_exit_time(ends, v, self.R) for ends in self.end_points(state, u)])
-        index = jnp.argmin(times)
-        return times[index], index
+            t = _exit_time(x, y, vx, vy, self.R)
+            return t, jnp.zeros(jnp.shape(t), jnp.int32)
+        ux, uy = lens_direction
+        t_p1 = _exit_time(x + self.ell * ux, y + self.ell * uy, vx, vy, self.R)
+        t_p2 = _exit_time(x - self.ell * ux, y - self.ell * uy, vx, vy, self.R)
+        return jnp.minimum(t_p1, t_p2), first_smallest((t_p1, t_p2))
 
-    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, lens_direction: jax.Array | None):
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, lens_direction):
         """The flight to ``t`` and the impulse(s) of end ``index`` (0: P1, 1: P2) touching the wall."""
-        moved = self.flight(state, t)
-        if self.kind == "rotor":
-            # The root search evaluated the turning stick itself; u is needed
-            # only at the contact.
-            u = self.direction(moved)
+        moved = _flight(self.kind, state, t)
+        if self.kind == "lens":
+            u = lens_direction  # the lens never turns: one u serves the whole orbit
         else:
-            # The lens never turns and the circle ignores u: one u serves throughout.
-            u = lens_direction if lens_direction is not None else self.direction(state)
+            u = _direction(self.kind, moved[2])
+        if self.kind == "circle":
+            return self.kick(moved, 0.0, u), jnp.ones(jnp.shape(t), jnp.int32)
         return self._resolve_contact(moved, index, u)
 
-    def _resolve_contact(self, state: jax.Array, index: jax.Array, u: jax.Array):
+    def _resolve_contact(self, state: tuple, index: jax.Array, u: tuple):
         """Apply the impulse at the touching end; a simultaneous second contact too."""
-        if self.kind == "circle":
-            return self.kick(state, 0.0, u), jnp.int32(1)
-        ends = jnp.asarray(_ENDS)
-        gaps = self.gaps(state, u)
-        speeds = self.approach_speeds(state, u)
+        gaps = _end_gaps(self, state, u)
+        speeds = _end_approach_speeds(self, state, u)
         other = 1 - index
-        corner = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.R**2) & (speeds[other] > 0.0)
+        gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
+        corner = (gap_other <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.R**2) & (speed_other > 0.0)
         # At a corner the faster-approaching end is kicked first, the other after
         # it if it still approaches: a deterministic rule for an ill-posed event.
-        first = jnp.where(corner & (speeds[other] > speeds[index]), other, index)
+        first = jnp.where(corner & (speed_other > speed_index), other, index)
         second = 1 - first
-        state = self.kick(state, ends[first], u)
-        still_approaching = self.approach_speeds(state, u)[second] > 0.0
-        state = jnp.where(corner & still_approaching, self.kick(state, ends[second], u), state)
-        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.int32(ends[index]))
-        return state, contact
+        sign = (1.0, -1.0)  # end P1, end P2
+        kicked = self.kick(state, select(sign, first), u)
+        still_approaching = select(_end_approach_speeds(self, kicked, u), second) > 0.0
+        kicked = where(corner & still_approaching, self.kick(kicked, select(sign, second), u), kicked)
+        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
+        return kicked, contact
 
     # -- derived quantities --------------------------------------------------
 
@@ -289,9 +286,7 @@ class StickInCircle(eqx.Module):
         every collision (float64 sin/cos dominate the lens's cost), and the
         circle (``ell = 0``) never needs it.
         """
-        if self.kind == "circle":
-            return jnp.stack([jnp.ones_like(state[..., 2]), jnp.zeros_like(state[..., 2])], axis=-1)
-        return jnp.stack([jnp.cos(state[..., 2]), jnp.sin(state[..., 2])], axis=-1)
+        return jnp.stack(_direction(self.kind, state[..., 2]), axis=-1)
 
     def end_points(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
@@ -302,8 +297,8 @@ class StickInCircle(eqx.Module):
 
     def gaps(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Contact gaps ``R^2 - |P_k|^2`` of both ends, shape ``(..., 2)``; >= 0 inside."""
-        ends = self.end_points(state, u)
-        return self.R[..., None] ** 2 - jnp.sum(ends * ends, axis=-1)
+        u = self.direction(state) if u is None else u
+        return jnp.stack(_end_gaps(self, components(state), components(u)), axis=-1)
 
     def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
         """Free flight for time ``t``; ``alpha`` is wrapped into ``[-pi, pi)``.
@@ -312,29 +307,17 @@ class StickInCircle(eqx.Module):
         long the run: an unwrapped angle of ``1e7`` radians would carry ``1e-9``
         absolute error into every contact.
         """
-        x, y, alpha, vx, vy, omega = (state[..., i] for i in range(6))
-        if self.kind != "lens":  # the lens never turns (omega = 0)
-            alpha = alpha + omega * t
-            alpha = jnp.remainder(alpha + jnp.pi, 2.0 * jnp.pi) - jnp.pi
-        return jnp.stack([x + vx * t, y + vy * t, alpha, vx, vy, omega], axis=-1)
+        return stacked(_flight(self.kind, components(state), t))
 
     def approach_speeds(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Normal velocity of each end towards the wall, ``v . n + omega s_k``, shape ``(..., 2)``."""
         u = self.direction(state) if u is None else u
-        ends = self.end_points(state, u)
-        v = state[..., 3:5]
-        omega = state[..., 5]
-        u_perp = jnp.stack([-u[..., 1], u[..., 0]], axis=-1)
-        end_velocity = jnp.stack(
-            [v + (self.ell * omega)[..., None] * u_perp, v - (self.ell * omega)[..., None] * u_perp],
-            axis=-2,
-        )
-        return jnp.sum(ends * end_velocity, axis=-1) / jnp.linalg.norm(ends, axis=-1)
+        return jnp.stack(_end_approach_speeds(self, components(state), components(u)), axis=-1)
 
     # -- the impulse law ------------------------------------------------------
 
-    def kick(self, state: jax.Array, end: jax.Array, u: jax.Array | None = None) -> jax.Array:
-        """Elastic frictionless impulse at end ``end`` (+1 or -1) touching the wall.
+    def kick(self, state: tuple, end, u: tuple) -> tuple:
+        """Elastic frictionless impulse at end ``end`` (+1 or -1) touching the wall (components in and out).
 
         ``n = P/|P|``, ``s = end ell (u x n)``, ``v_n = v . n + omega s``,
         ``J = 2 v_n / (1/M + s^2/I)``, ``v' = v - (J/M) n``,
@@ -363,8 +346,8 @@ class StickInCircle(eqx.Module):
         Measured over 1e6 collisions: below 5e-18 per collision, against
         1e-17 to 1.3e-16 before, for the lens, the circle and spinning sticks.
         """
-        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
-        ux, uy = self.direction(state) if u is None else u
+        x, y, alpha, vx, vy, omega = state
+        ux, uy = u
         arm = end * self.ell
         scale = math.sqrt(_KICK_DENOMINATOR) / self.R
         nx, ny = scale * (x + arm * ux), scale * (y + arm * uy)
@@ -372,17 +355,20 @@ class StickInCircle(eqx.Module):
         v_n = vx * nx + vy * ny + omega * s
         ratio = self.mass * self.inverse_inertia  # M / I; 0 for the lens and the circle
         change = 2.0 * v_n / (nx * nx + ny * ny + ratio * (s * s))
-        return jnp.stack([x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s])
+        return x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s
 
     # -- invariants ---------------------------------------------------------------
 
     def energy(self, state: jax.Array) -> jax.Array:
-        """``M |v|^2 / 2 + I omega^2 / 2`` (the lens drops the spin term: omega = 0)."""
-        v2 = state[..., 3] ** 2 + state[..., 4] ** 2
-        e = 0.5 * self.mass * v2
+        """``M |v|^2 / 2 + I omega^2 / 2`` (the lens drops the spin term: omega = 0).
+
+        ``state``: an array ``(..., 6)`` or its components (``jaxbill._scene.component``).
+        """
+        vx, vy, omega = (component(state, i) for i in (3, 4, 5))
+        e = 0.5 * self.mass * (vx**2 + vy**2)
         if self.kind == "lens":
             return e
-        return e + _spin_term(self.kind, state[..., 5], 0.5 * self.inertia * state[..., 5] ** 2)
+        return e + _spin_term(self.kind, omega, 0.5 * self.inertia * omega**2)
 
     def angular_momentum(self, state: jax.Array) -> jax.Array:
         """Total angular momentum about the origin, ``M (x vy - y vx) + I omega``.
@@ -425,16 +411,55 @@ def _spin_term(kind, omega, term):
     return jnp.where(omega == 0.0, 0.0, term) if kind == "circle" else term
 
 
-def _exit_time(p: jax.Array, v: jax.Array, radius: jax.Array) -> jax.Array:
+def _direction(kind: str, alpha):
+    """``(cos alpha, sin alpha)``; the circle (``ell = 0``) never needs it."""
+    if kind == "circle":
+        return jnp.ones_like(alpha), jnp.zeros_like(alpha)
+    return jnp.cos(alpha), jnp.sin(alpha)
+
+
+def _flight(kind: str, state: tuple, t) -> tuple:
+    """Free flight of the components for time ``t``; ``alpha`` wrapped into ``[-pi, pi)`` (see ``flight``)."""
+    x, y, alpha, vx, vy, omega = state
+    if kind != "lens":  # the lens never turns (omega = 0)
+        alpha = jnp.remainder(alpha + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+    return x + vx * t, y + vy * t, alpha, vx, vy, omega
+
+
+def _end_gaps(scene: StickInCircle, state: tuple, u: tuple) -> tuple:
+    """``R^2 - |P_k|^2`` of ends P1 and P2."""
+    x, y = state[0], state[1]
+    ux, uy = u
+    gaps = []
+    for sign in (1.0, -1.0):
+        px, py = x + sign * scene.ell * ux, y + sign * scene.ell * uy
+        gaps.append(scene.R**2 - (px * px + py * py))
+    return tuple(gaps)
+
+
+def _end_approach_speeds(scene: StickInCircle, state: tuple, u: tuple) -> tuple:
+    """Normal velocity ``v . n + omega s_k`` of ends P1 and P2 towards the wall."""
+    x, y, _, vx, vy, omega = state
+    ux, uy = u
+    speeds = []
+    for sign in (1.0, -1.0):
+        arm = sign * scene.ell
+        px, py = x + arm * ux, y + arm * uy
+        ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+        speeds.append((px * ex + py * ey) / jnp.sqrt(px * px + py * py))
+    return tuple(speeds)
+
+
+def _exit_time(px, py, vx, vy, radius):
     """First ``t >= 0`` with ``|p + v t| = radius`` while moving outwards.
 
     ``p`` is inside (or on, to rounding) the disc. A point on the rim moving
     inwards gets the far root, never ``t = 0``; one on or outside the rim moving
     outwards gets 0. Never-moving points get ``inf``.
     """
-    speed2 = v @ v
-    b = p @ v
-    gap = radius * radius - p @ p
+    speed2 = vx * vx + vy * vy
+    b = px * vx + py * vy
+    gap = radius * radius - (px * px + py * py)
     disc = b * b + speed2 * gap
     root = jnp.sqrt(jnp.maximum(disc, 0.0))
     # Cancellation-free forms of the larger root of speed2 t^2 + 2 b t - gap = 0.
@@ -446,37 +471,36 @@ def _exit_time(p: jax.Array, v: jax.Array, radius: jax.Array) -> jax.Array:
     inward = jnp.where(disc < 0.0, -2.0 * b / speed2, (root - b) / speed2)
     outward = gap / (b + root)
     t = jnp.where(b <= 0.0, inward, outward)
-    t = jnp.where(speed2 > 0.0, jnp.maximum(t, 0.0), jnp.inf)
-    return t
+    return jnp.where(speed2 > 0.0, jnp.maximum(t, 0.0), jnp.inf)
 
 
-def _disc_crossing(p: jax.Array, v: jax.Array, radius: jax.Array):
+def _disc_crossing(px, py, vx, vy, radius):
     """Interval ``(t_in, t_out)`` of ``t >= 0`` with ``|p + v t| < radius`` (empty if none)."""
-    speed2 = v @ v
-    b = p @ v
-    excess = p @ p - radius * radius
+    speed2 = vx * vx + vy * vy
+    b = px * vx + py * vy
+    excess = px * px + py * py - radius * radius
     disc = b * b - speed2 * excess
     root = jnp.sqrt(jnp.maximum(disc, 0.0))
     # Roots of speed2 t^2 + 2 b t + excess = 0 without cancellation.
-    q = -(b + jnp.copysign(root, b))
+    q = -(b + jnp.where(b < 0.0, -root, root))
     t1, t2 = q / speed2, excess / q
     t_in, t_out = jnp.minimum(t1, t2), jnp.maximum(t1, t2)
     crosses = (speed2 > 0.0) & (disc > 0.0) & (t_out > 0.0)
     inside_for_ever = (speed2 == 0.0) & (excess < 0.0)
     t_in = jnp.where(crosses, jnp.maximum(t_in, 0.0), jnp.where(inside_for_ever, 0.0, jnp.inf))
-    t_out = jnp.where(crosses, t_out, jnp.where(inside_for_ever, jnp.inf, jnp.inf))
+    t_out = jnp.where(crosses, t_out, jnp.inf)
     return t_in, t_out
 
 
-def _rotor_bounds(scene: StickInCircle, state: jax.Array) -> RootBounds:
-    c, v, omega = state[0:2], state[3:5], state[5]
-    speed = jnp.linalg.norm(v)
+def _rotor_bounds(scene: StickInCircle, state: tuple) -> RootBounds:
+    x, y, _, vx, vy, omega = state
+    speed = jnp.sqrt(vx * vx + vy * vy)
     spin = jnp.abs(omega)
     # No end can touch while the centre is within R - ell of the origin (the
     # quiet interval); before the first contact the centre stays within
     # sqrt(R^2 - ell^2).
-    centre_radius = jnp.linalg.norm(c)
-    quiet_in, quiet_out = _disc_crossing(c, v, scene.R - scene.ell)
+    centre_radius = jnp.sqrt(x * x + y * y)
+    quiet_in, quiet_out = _disc_crossing(x, y, vx, vy, scene.R - scene.ell)
     reach = jnp.maximum(jnp.sqrt(scene.R**2 - scene.ell**2), centre_radius)
     # g_k'' = -2|v|^2 - 2 k ell W'' with |W''| <= 2 |omega| |v| + omega^2 |c(t)|.
     wobble = 2.0 * scene.ell * (2.0 * spin * speed + spin * spin * reach)

@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh
 
+from . import _run_guard
 from ._collision import _check_eagerly, _poison_if, step_function
 from ._run_files import (
     CHECKPOINT_NAME,
@@ -42,6 +43,8 @@ from ._run_files import (
     scene_parameters,
     scene_signature,
 )
+from . import _lanes as lanes
+from ._pallas import pallas_final
 from ._sharding import host_rows, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
 from ._validation import check_count
 
@@ -276,11 +279,48 @@ def _lanes_chunk(plan: _Plan, width: int):
     return run_lanes
 
 
+def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
+    """The chunk of a batch run by the lane state machine: in an XLA loop (``jaxbill._lanes``) or,
+    for ``record="final"``, in a Pallas kernel (``jaxbill._pallas``)."""
+    section = plan.section
+    machine_plan = lanes.Plan(
+        plan.record, plan.every, plan.rows,
+        where=None if section is None else section.where,
+        project=None if section is None else section.project,
+    )
+
+    def run_machine(scene, states0, carry, start, steps):
+        if driver == "pallas":
+            new_carry, records = pallas_final(scene, states0, lanes.Carry(*carry), steps, interpret=interpret), ()
+        else:
+            new_carry, records = lanes.run_blocks(machine_plan, width)(scene, states0, lanes.Carry(*carry), start, steps)
+        invalid = ~jax.vmap(scene.is_valid)(states0)
+        if plan.record == "states":
+            records = tuple(_poison_rows(invalid, r) for r in records)
+        elif plan.record == "section":
+            point, t, number, fill = records
+            records = (_poison_rows(invalid, point[:, : plan.rows]), _poison_rows(invalid, t[:, : plan.rows]),
+                       number[:, : plan.rows], fill)
+        return _Carry(*new_carry), records
+
+    return run_machine
+
+
+def _poison_rows(invalid, array):
+    """Rows of orbits whose first state was invalid, NaN (0 for integers)."""
+    mask = invalid.reshape(-1, *([1] * (array.ndim - 1)))
+    return jnp.where(mask, jnp.nan if jnp.issubdtype(array.dtype, jnp.floating) else 0, array)
+
+
 @functools.lru_cache(maxsize=64)
-def _compiled_chunk(plan: _Plan, width: int | None, mesh: Mesh | None):
+def _compiled_chunk(plan: _Plan, width: int | None, mesh: Mesh | None, driver: str | None):
     if width is None:
         return jax.jit(functools.partial(_lane_chunk, plan))
-    return shard_over_orbits(_lanes_chunk(plan, width), mesh, (False, True, True, False, False))
+    if driver == "lockstep":
+        batched = _lanes_chunk(plan, width)
+    else:
+        batched = _state_machine_chunk(plan, width, driver, interpret=mesh.devices.flat[0].platform == "cpu")
+    return shard_over_orbits(batched, mesh, (False, True, True, False, False))
 
 
 # -- one orbit or a batch, on the devices ------------------------------------------
@@ -289,7 +329,7 @@ def _compiled_chunk(plan: _Plan, width: int | None, mesh: Mesh | None):
 class _Engine:
     """Runs chunks of one orbit or of a batch and brings the results to the host."""
 
-    def __init__(self, scene, state0: np.ndarray, devices):
+    def __init__(self, scene, state0: np.ndarray, devices, driver: str | None = None):
         self.scene, self.state0 = scene, state0
         self.batched = state0.ndim == 2
         if not self.batched:
@@ -299,6 +339,9 @@ class _Engine:
             return
         self.width = scene.batch_chunk
         self.mesh = orbit_mesh(devices)
+        self.platform = self.mesh.devices.flat[0].platform
+        lanes.choose_driver(self.platform, driver)  # an unknown driver fails before anything runs
+        self.driver = driver
         self.batch = state0.shape[0]
         self.lanes = padded_batch_size(self.batch, self.width, self.mesh)
         self.padded_state0 = pad_batch(state0, self.lanes)
@@ -337,7 +380,8 @@ class _Engine:
         )
 
     def run_chunk(self, plan: _Plan, carry: _Carry, start: int, steps: int):
-        function = _compiled_chunk(plan, self.width, self.mesh)
+        driver = lanes.choose_driver(self.platform, self.driver, plan.record) if self.batched else None
+        function = _compiled_chunk(plan, self.width, self.mesh, driver)
         if self.batched:
             return function(self.device_scene, self.device_state0, carry, start, steps)
         return function(self.scene, jnp.asarray(self.state0), carry, start, steps)
@@ -458,28 +502,29 @@ def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, en
     if resume is True:
         if out_dir is None or not (out_dir / CHECKPOINT_NAME).exists():
             raise ValueError(f"resume=True continues the run in out; there is no {CHECKPOINT_NAME} in {out_dir}")
-        checkpoint = Checkpoint.load(out_dir / CHECKPOINT_NAME)
+        source = out_dir / CHECKPOINT_NAME
+        checkpoint = Checkpoint.load(source)
     elif isinstance(resume, Checkpoint):
-        checkpoint = resume
+        source, checkpoint = "the checkpoint", resume
     elif isinstance(resume, (str, os.PathLike)):
-        checkpoint = Checkpoint.load(resume)
+        source, checkpoint = resume, Checkpoint.load(resume)
     else:
         raise ValueError(f"resume must be None, True, a Checkpoint or a checkpoint path; got {resume!r}")
     if checkpoint.state0.shape != state0.shape or not np.array_equal(checkpoint.state0, state0):
-        raise ValueError("resume: the checkpoint belongs to a run from other initial states (state0 differs)")
+        raise ValueError(f"resume: {source} belongs to a run from other initial states (state0 differs)")
     same_parameters = len(checkpoint.scene_parameters) == len(scene_parameters(scene)) and all(
         np.array_equal(a, b) for a, b in zip(checkpoint.scene_parameters, scene_parameters(scene))
     )
     if checkpoint.scene_signature != scene_signature(scene) or not same_parameters:
-        raise ValueError("resume: the checkpoint belongs to a run of another scene")
+        raise ValueError(f"resume: {source} belongs to a run of another scene")
     if checkpoint.collisions > n:
-        raise ValueError(f"resume: the checkpoint is at collision {checkpoint.collisions}, beyond n = {n}")
+        raise ValueError(f"resume: {source} is at collision {checkpoint.collisions}, beyond n = {n}")
     same_orbits = (checkpoint.orbit_index is None) == (engine.orbit_index is None) and (
         engine.orbit_index is None or np.array_equal(checkpoint.orbit_index, engine.orbit_index)
     )
     if not same_orbits:
         raise ValueError(
-            "resume: the checkpoint holds other orbits than this process runs "
+            f"resume: {source} holds other orbits than this process runs "
             "(a checkpoint of one process of a jax.distributed run resumes only in the same layout)"
         )
     if out_dir is not None and checkpoint.record != record_signature:
@@ -492,9 +537,16 @@ def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, en
 class _Records:
     """Collects a run's records on the host: in numpy arrays, or in the run directory."""
 
-    def __init__(self, kind, every, n, first, engine, point, out_dir, own_checkpoint):
+    def __init__(self, kind, every, n, first, engine, point, out_dir, own_checkpoint, checkpoint_bytes=0):
         """``first``: collisions done before this call; ``own_checkpoint``: the run
-        directory's checkpoint when continuing the run in it (else ``None``)."""
+        directory's checkpoint when continuing the run in it (else ``None``);
+        ``checkpoint_bytes``: room the checkpoints need besides the records.
+
+        In a run directory, the full-size ``record="states"`` files take all their
+        disk blocks here, before the first collision, or the run fails here with
+        ``OSError(ENOSPC)`` saying how many bytes it needs and how many are free
+        (and leaves no files it created).
+        """
         self.kind, self.every, self.engine, self.out_dir = kind, every, engine, out_dir
         checkpoint = own_checkpoint
         # Records begin where this directory (or, in memory, this call) began.
@@ -516,16 +568,37 @@ class _Records:
             if out_dir is None:
                 self.states = [np.empty(shape, dtype) for _, dtype, shape in specs]
             else:
-                self.states = [open_record(out_dir / f"{name}.npy", dtype, shape, create=checkpoint is None)
-                               for name, dtype, shape in specs]
+                self._open_states(specs, fresh=checkpoint is None, checkpoint_bytes=checkpoint_bytes)
         elif kind == "section" and out_dir is not None:
             specs = [(point.dtype, point.shape), (np.float64, ()), (np.int64, ())]
             if engine.batched:
                 specs.append((np.int64, ()))
             self.section_files = [
-                GrowingNpy(out_dir / f"{name}.npy", dtype, shape, self.section_rows)
+                GrowingNpy(out_dir / f"{name}.npy", dtype, shape, self.section_rows, create=checkpoint is None)
                 for name, (dtype, shape) in zip(SECTION_RECORD_NAMES, specs)
             ]
+        if out_dir is not None and kind != "states":
+            # Section files grow as points come (a full disk then stops the run
+            # with its checkpoint, see run); only the checkpoint's room is known.
+            _run_guard.check_space(out_dir, checkpoint_bytes, "the checkpoint")
+
+    def _open_states(self, specs, fresh: bool, checkpoint_bytes: int) -> None:
+        specs = list(specs)
+        paths = [self.out_dir / f"{name}.npy" for name, _, _ in specs]
+        what = "record='states' (" + ", ".join(path.name for path in paths) + ") with its checkpoint"
+        try:
+            self.states = [open_record(path, dtype, shape, create=fresh) for path, (_, dtype, shape) in zip(paths, specs)]
+            # The files are sparse so far: count the blocks they still lack.
+            needed = sum(_run_guard.unallocated_bytes(path) for path in paths) + checkpoint_bytes
+            _run_guard.check_space(self.out_dir, needed, what)
+            for path in paths:
+                _run_guard.reserve(path, path.stat().st_size, what)
+        except BaseException:
+            self.states = None
+            if fresh:
+                for path in paths:
+                    path.unlink(missing_ok=True)
+            raise
 
     def add_states(self, buffers, start: int, steps: int) -> None:
         # The collisions numbered every, 2 every, ... within (start, start + steps].
@@ -548,17 +621,31 @@ class _Records:
             block = (point[kept], t[kept], number[kept], orbit)
         else:
             block = (point[:fill], t[:fill], number[:fill])
-        self.section_rows += block[0].shape[0]
         if self.section_files is None:
             self.section_blocks.append(block)
         else:
-            for file, values in zip(self.section_files, block):
-                file.append(values)
+            try:
+                for file, values in zip(self.section_files, block):
+                    file.append(values)
+            except OSError:
+                # Give back what this chunk took of a full disk, so that the
+                # checkpoint of the last complete chunk still fits.
+                for file in self.section_files:
+                    try:
+                        file.cut(self.section_rows)
+                    except OSError:
+                        pass
+                raise
+        # Counted (and so in the next checkpoint) only once every file holds them.
+        self.section_rows += block[0].shape[0]
 
     def flush(self) -> None:
         if self.out_dir is not None and self.states is not None:
-            for record in self.states:
-                record.flush()
+            for name, record in zip(STATE_RECORD_NAMES, self.states):
+                try:
+                    record.flush()
+                except OSError as error:  # e.g. EIO from the disk: say which file
+                    raise OSError(error.errno, error.strerror, str(self.out_dir / f"{name}.npy")) from error
 
     def results(self, point) -> tuple:
         """``(t, contact, state, section)`` for ``Run``: numpy arrays, or read-only
@@ -593,6 +680,7 @@ def run(
     resume=None,
     devices: Mesh | Sequence[jax.Device] | None = None,
     progress: bool | None = None,
+    driver: str | None = None,
 ) -> Run:
     """Run ``n`` collisions of one orbit or a batch in bounded memory, recording only what is asked.
 
@@ -612,9 +700,13 @@ def run(
             of records). Results do not depend on it.
         out: a directory to write the run into: ``.npy`` records (memory-mappable,
             written chunk by chunk, so host memory stays bounded) and
-            ``checkpoint.npz`` (every ``CHECKPOINT_INTERVAL_S`` and at the end).
-            Under ``jax.distributed`` each process writes ``out/process_<i>``.
-            ``None``: records are returned as numpy arrays.
+            ``checkpoint.npz`` (at the start, every ``CHECKPOINT_INTERVAL_S``, on
+            a stop signal and at the end). Under ``jax.distributed`` each process
+            writes ``out/process_<i>``. ``None``: records are returned as numpy arrays.
+            The call holds a lock on the directory (one writer at a time), makes
+            the ``record="states"`` files take their disk space before the first
+            collision, and turns ``SIGTERM`` and ``SIGINT`` (Ctrl-C) into a stop at
+            the end of the chunk in flight, after a checkpoint (README, "Long runs").
         resume: continue a run: ``True`` (the run in ``out``), a ``Checkpoint``
             (e.g. ``previous.checkpoint``) or a checkpoint path. ``scene`` and
             ``state0`` must be the run's own. The result is bitwise what the
@@ -624,6 +716,14 @@ def run(
             orbit runs on the default device.
         progress: a progress bar on stderr; ``None``: when stderr is a terminal,
             in process 0, for a run of several chunks.
+        driver: for a batch, ``"lockstep"``, ``"lanes"`` or ``"pallas"``;
+            ``None`` picks the fastest on the platform: ``"lockstep"`` on a
+            CPU, ``"pallas"`` on a GPU (``record="final"``; other records
+            take ``"lanes"``). See ``jaxbill._lanes.choose_driver``. All give
+            the same orbits to rounding; a checkpoint resumes bitwise with the
+            driver that wrote it. Derivatives never go through a driver:
+            ``jb.collide``, ``jb.orbit`` of one orbit, ``jb.tangent_map`` and
+            ``jb.lyapunov_spectrum`` differentiate ``jaxbill._step.advance``.
 
     Returns:
         ``Run``: final states, running statistics, records and a checkpoint.
@@ -632,7 +732,16 @@ def run(
         ValueError: for bad ``state0``/``n`` (as ``jb.orbit``), an unknown
             ``record``, ``every`` with a record other than ``"states"``,
             ``chunk < 1``, an ``out`` that is a file or already holds a run
-            (without ``resume``), or a checkpoint of another run.
+            (without ``resume``), an ``out`` another ``jb.run`` is writing (the
+            message names the process), a checkpoint of another run, or a
+            checkpoint or record file that is damaged (the message names it).
+        OSError: (``ENOSPC``) before the first collision, if the records do
+            not fit on the disk (the message says how many bytes are needed and
+            free); during the run, if writing fails: the run stops with its
+            checkpoint intact and the message says from which collision
+            ``resume=True`` continues.
+        RunInterrupted: after a ``SIGTERM``, with the checkpoint written.
+        KeyboardInterrupt: after a ``SIGINT`` (Ctrl-C), with the checkpoint written.
 
     Memory: the device holds each orbit's carry (state and statistics, about
     ``(S + 12) * 8`` bytes) and one chunk's records; ``record="final"`` over a
@@ -647,7 +756,17 @@ def run(
     _check_eagerly(scene, state0)
     state0 = np.asarray(state0, dtype=np.float64)
     out_dir = _resolve_out(out)
-    engine = _Engine(scene, state0, devices)
+    # The directory is locked before its checkpoint is read: two calls racing
+    # for it would otherwise both find it empty and both write into it.
+    with _run_guard.RunGuard(out_dir) as guard:
+        return _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, devices, progress, guard,
+                           driver)
+
+
+def _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, devices, progress, guard,
+                driver) -> Run:
+    """``run`` once its arguments are checked and its directory (if any) is held by ``guard``."""
+    engine = _Engine(scene, state0, devices, driver)
 
     point = _section_point_shape(scene, state0, section) if section else None
     record_signature = {"final": "final", "states": f"states/every={every}"}.get(kind) or f"section/{point.shape}"
@@ -665,7 +784,10 @@ def run(
 
     carry = engine.initial_carry(checkpoint)
     own_checkpoint = checkpoint if (resume is True) else None
-    records = _Records(kind, every, n, first, engine, point, out_dir, own_checkpoint)
+    lead = engine.orbit_index.size if engine.batched else 1
+    # The old and the new checkpoint side by side while one replaces the other.
+    checkpoint_bytes = 2 * (state0.nbytes + lead * (state0.shape[-1] + len(CONTACT_CODES) + 5) * 8) + (1 << 16)
+    records = _Records(kind, every, n, first, engine, point, out_dir, own_checkpoint, checkpoint_bytes)
 
     show = progress if progress is not None else (
         sys.stderr.isatty() and jax.process_index() == 0 and n - first > chunk
@@ -692,33 +814,89 @@ def run(
             records_from=records.records_from,
         )
 
+    saved_at = first if own_checkpoint is not None else None  # collision of the checkpoint in out_dir
+
+    def save_checkpoint() -> Checkpoint:
+        nonlocal saved_at
+        saved = checkpoint_now()
+        records.flush()  # the records before the checkpoint that counts them
+        saved.save(out_dir / CHECKPOINT_NAME)
+        saved_at = done
+        return saved
+
+    def write_failed(error: OSError, checkpoint_again: bool) -> OSError:
+        """The error that ends a run whose files could not be written: the
+        checkpoint in ``out_dir`` (that of the last complete chunk, if it can still
+        be written; else the one before) matches the records up to it."""
+        if checkpoint_again:
+            try:
+                save_checkpoint()
+            except OSError:
+                pass  # the disk refuses even that: the checkpoint before stands
+        where = (
+            f"{out_dir / CHECKPOINT_NAME} holds collision {saved_at}, with the records up to it: free some "
+            "space (or repair the disk) and continue with the same arguments and resume=True, bitwise the "
+            "uninterrupted run"
+            if saved_at is not None
+            else "no checkpoint could be written: free some space (or repair the disk) and start the run again"
+        )
+        return OSError(
+            error.errno,
+            f"jb.run: writing {error.filename or out_dir} failed ({error.strerror or error}) after collision "
+            f"{done} of {n}; the run stopped. {where}",
+            error.filename,
+        )
+
+    if out_dir is not None and own_checkpoint is None:
+        # From the start a crash leaves a checkpoint, so resume=True always applies.
+        try:
+            save_checkpoint()
+        except OSError as error:
+            raise write_failed(error, False) from error
+
     while done < n:
         steps = min(chunk, n - done)
         new_carry, out_buffers = engine.run_chunk(plan, carry, done, steps)
-        if kind == "section":
-            most = _largest_everywhere(int(np.max(engine.to_host(out_buffers[3]), initial=0)))
-            if most > plan.rows:
-                # Too many points for the room: run this chunk again from its
-                # start (the carry is still there) with room for all of them.
-                plan = dataclasses.replace(plan, rows=min(chunk, 1 << (most - 1).bit_length()))
-                reruns += 1
-                continue
-            records.add_section(*out_buffers)
-        elif kind == "states":
-            records.add_states(out_buffers, done, steps)
-        else:
-            jax.block_until_ready(new_carry)
+        try:
+            if kind == "section":
+                most = _largest_everywhere(int(np.max(engine.to_host(out_buffers[3]), initial=0)))
+                if most > plan.rows:
+                    # Too many points for the room: run this chunk again from its
+                    # start (the carry is still there) with room for all of them.
+                    plan = dataclasses.replace(plan, rows=min(chunk, 1 << (most - 1).bit_length()))
+                    reruns += 1
+                    continue
+                records.add_section(*out_buffers)
+            elif kind == "states":
+                records.add_states(out_buffers, done, steps)
+            else:
+                jax.block_until_ready(new_carry)
+        except OSError as error:
+            # carry and done are still those of the last complete chunk.
+            raise write_failed(error, True) from error
         carry, done, chunks = new_carry, done + steps, chunks + 1
         bar.update(done)
-        if out_dir is not None and time.perf_counter() - last_saved > CHECKPOINT_INTERVAL_S and done < n:
-            records.flush()
-            checkpoint_now().save(out_dir / CHECKPOINT_NAME)
+        if out_dir is None:
+            continue
+        # Processes of a jax.distributed run stop and checkpoint after the same chunk.
+        stop, due = _run_guard.agreed(
+            guard.stop_requested(), time.perf_counter() - last_saved > CHECKPOINT_INTERVAL_S and done < n
+        )
+        if stop or due:
+            try:
+                save_checkpoint()
+            except OSError as error:
+                raise write_failed(error, False) from error
             last_saved = time.perf_counter()
+        if stop:
+            guard.stop(done, n, out_dir / CHECKPOINT_NAME)
 
     final = checkpoint_now()
     if out_dir is not None:
-        records.flush()
-        final.save(out_dir / CHECKPOINT_NAME)
+        try:
+            final = save_checkpoint()
+        except OSError as error:
+            raise write_failed(error, False) from error
     t, contact, states, points = records.results(point)
     return Run(
         final_state=final.state,

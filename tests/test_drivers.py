@@ -194,3 +194,66 @@ def test_unknown_driver_is_refused():
     scene = jb.StickInCircle(R=2.0, ell=1.9)
     with pytest.raises(ValueError, match="driver"):
         jb.orbit(scene, start_states(scene, 2), 3, driver="gpu")
+
+
+# ---------------------------------------------------------------------------
+# the Pallas kernel (interpret mode on the CPU; lowered for CUDA)
+# ---------------------------------------------------------------------------
+from jaxbill import _pallas  # noqa: E402
+
+
+@pytest.mark.parametrize("name", list(scenes()))
+def test_pallas_kernel_matches_the_xla_state_machine_collision_by_collision(name):
+    """From identical states, one collision at a time: the kernel's states, times and
+    contacts equal the XLA driver's to rounding."""
+    scene = scenes()[name]
+    states = jnp.asarray(start_states(scene, 32, seed=11))
+    for _ in range(3):
+        carry = _lanes.fresh_carry(scene, states)
+        kernel = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 1, interpret=True))(states, carry)
+        xla, _ = jax.jit(lambda s, c: _lanes.run_block(_lanes.Plan("final"), scene, s, c, 0, 1))(states, carry)
+        np.testing.assert_array_equal(np.asarray(kernel.contact_counts), np.asarray(xla.contact_counts))
+        np.testing.assert_allclose(np.asarray(kernel.time), np.asarray(xla.time), rtol=1e-14)
+        scale = np.max(np.abs(np.asarray(xla.state)), axis=1, keepdims=True)
+        assert np.max(np.abs(np.asarray(kernel.state) - np.asarray(xla.state)) / scale) < 1e-14
+        states = xla.state
+
+
+def test_pallas_through_run_with_padding_poison_and_zero_collisions():
+    """``jb.run(driver="pallas")`` pads the batch to whole blocks, keeps a NaN lane
+    from stalling the others, and does nothing for n = 0."""
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    states = start_states(scene, 37)  # not a multiple of the block
+    kernel = jb.run(scene, states, 12, driver="pallas")
+    xla = jb.run(scene, states, 12, driver="lanes")
+    np.testing.assert_array_equal(kernel.contact_counts, xla.contact_counts)
+    np.testing.assert_allclose(kernel.final_state, xla.final_state, rtol=1e-10, atol=1e-12)
+    assert np.all(kernel.max_energy_error < 1e-13)
+    zero = jb.run(scene, states, 0, driver="pallas")
+    np.testing.assert_array_equal(zero.final_state, states)
+
+    carry = _lanes.fresh_carry(scene, jnp.asarray(states[:32]))
+    poisoned = carry._replace(state=carry.state.at[3, 0].set(jnp.nan))
+    out = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 5, interpret=True))(jnp.asarray(states[:32]), poisoned)
+    others = np.arange(32) != 3
+    assert np.all(np.isnan(np.asarray(out.state[3]))) and np.all(np.isfinite(np.asarray(out.state[others])))
+    assert np.all(np.asarray(out.contact_counts).sum(axis=1) == 5)
+
+
+def test_pallas_lane_out_of_root_steps_is_poisoned(monkeypatch):
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    states = jnp.asarray(start_states(scene, 32))
+    monkeypatch.setattr(_step, "MAX_ROOT_STEPS", 1)
+    out = jax.jit(lambda s: _pallas.pallas_final(scene, s, _lanes.fresh_carry(scene, s), 2, interpret=True))(states)
+    assert np.all(np.isnan(np.asarray(out.time)))
+    code_zero = _lanes.CONTACT_CODES.index(0)
+    assert np.all(np.asarray(out.contact_counts)[:, code_zero] >= 1)  # the unproven collision: contact 0
+
+
+@pytest.mark.parametrize("name", list(scenes()))
+def test_pallas_kernel_lowers_for_cuda_without_a_gpu(name):
+    scene = scenes()[name]
+    states = jnp.zeros((64, scene.state_size))
+    lowered = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 10)).trace(
+        states, _lanes.fresh_carry(scene, states)).lower(lowering_platforms=("cuda",))
+    assert "triton" in lowered.as_text().lower() or "__gpu$xla$gpu$triton" in lowered.as_text()

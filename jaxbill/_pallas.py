@@ -1,0 +1,158 @@
+"""The Pallas driver of the lane state machine: a block of orbits held in registers, one kernel.
+
+The XLA driver (``jaxbill._lanes``) runs a turn of the state machine as a few
+kernels, each reading and writing every lane's values in memory; on a GPU that
+traffic, not the arithmetic, sets the pace. Here one Pallas (Triton) kernel
+runs the whole loop: each program holds ``block`` lanes in registers from the
+first collision of a chunk to the last, and takes exactly the moves of the
+other drivers (``jaxbill._step.end_and_begin`` and ``search_step``, built from
+the scene's own functions), so a scene gets the kernel without a line of GPU
+code.
+
+What the Triton backend lowers shapes this module: arrays of power-of-two
+sizes only, no slicing of a value, no gather, no constants captured by the
+kernel. So the state is laid out component-major (``(S, B)``, each component a
+row, padded to a power of two), a lane's state is the tuple of its rows (the
+engine's *components*), the scene's parameters come in as inputs, and every
+per-lane value is a ``(block,)`` vector.
+
+It records the final state and the run statistics (``record="final"``);
+records of states or sections go through the XLA driver. Derivatives are never
+taken through it: they go through ``jaxbill._step.advance``.
+
+Without a GPU it runs in interpret mode (``interpret=True``) on the CPU, which
+the tests use, and it lowers for CUDA (``lowering_platforms=("cuda",)``).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+from ._lanes import CONTACT_CODES, Carry
+from ._step import begin_flight, end_and_begin, search_step, where
+
+# Orbits per kernel program. Measured by a prototype on an H100 (float64, the
+# spinning stick): 32 lanes on one warp were fastest; 64 on 2 warps reached
+# 0.97x that, 128 on 4 0.94x, 256 on 8 0.82x.
+BLOCK = 32
+NUM_WARPS = 1
+
+
+def _padded(size: int) -> int:
+    """The smallest power of two >= ``size`` (Triton's arrays have power-of-two sizes)."""
+    return 1 << max(0, (size - 1).bit_length())
+
+
+def _broadcast(tree, block: int):
+    # A while loop's carry must keep its shapes: every lane value becomes a block.
+    return jax.tree.map(lambda a: jnp.broadcast_to(a, (block,)), tree)
+
+
+def _kernel(treedef, leaf_count: int, size: int, block: int, *refs):
+    leaves = [ref[0] for ref in refs[:leaf_count]]
+    steps_ref, states0_ref, state_ref, time_ref, error_ref, counts_ref = refs[leaf_count : leaf_count + 6]
+    state_out, time_out, error_out, counts_out = refs[leaf_count + 6 :]
+    scene = jax.tree.unflatten(treedef, leaves)
+    steps = steps_ref[0]
+    state0 = tuple(states0_ref[i, :] for i in range(size))
+    constants = scene.orbit_constants(state0)
+    energy0 = scene.energy(state0)
+    energy_unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
+    codes = len(CONTACT_CODES)
+
+    def not_finished(loop):
+        return jnp.min(loop[-1]) < steps
+
+    def one_turn(loop):
+        lane, state, time, error, counts, done = loop
+        lane, (collided, new_state, dt, contact) = end_and_begin(scene, lane, done < steps, constants)
+        lane = _broadcast(lane, block)
+        state = where(collided, new_state, state)
+        time = jnp.where(collided, time + dt, time)
+        drift = jnp.abs(scene.energy(new_state) - energy0) / energy_unit
+        # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
+        error = jnp.where(collided, jnp.maximum(error, drift), error)
+        known = functools.reduce(jnp.logical_or, [contact == code for code in CONTACT_CODES])
+        counts = tuple(
+            counts[k] + (collided & ((contact == CONTACT_CODES[k]) if k < codes else ~known)).astype(jnp.int64)
+            for k in range(codes + 1)
+        )
+        done = done + collided.astype(jnp.int32)
+        return _broadcast(search_step(scene, lane), block), state, time, error, counts, done
+
+    state = tuple(state_ref[i, :] for i in range(size))
+    lane = _broadcast(begin_flight(scene, state, constants), block)
+    counts = tuple(counts_ref[k, :] for k in range(codes + 1))
+    loop = (lane, state, time_ref[...], error_ref[...], counts, jnp.zeros((block,), jnp.int32))
+    _, state, time, error, counts, _ = jax.lax.while_loop(not_finished, one_turn, loop)
+    for i in range(size):
+        state_out[i, :] = state[i]
+    time_out[...] = time
+    error_out[...] = error
+    for k in range(codes + 1):
+        counts_out[k, :] = counts[k]
+
+
+def pallas_final(scene, states0: jax.Array, carry: Carry, steps, *, block: int = BLOCK, interpret: bool = False):
+    """``steps`` more collisions of every orbit, final states and statistics only, in one Pallas kernel.
+
+    Args:
+        scene: any scene (its engine functions on components, ``jaxbill._step``).
+        states0: ``(B, S)`` the orbits' first states (for their constants and
+            energy); ``B`` a multiple of ``block``.
+        carry: where each orbit is now (``jaxbill._lanes.Carry``, leading axis ``B``).
+        steps: collisions to add (may be traced).
+        block: orbits per kernel program (a power of two).
+        interpret: run the kernel in Pallas's interpreter (any backend, e.g. the CPU).
+
+    Returns:
+        The new ``Carry``. Equal, lane by lane, to ``jaxbill._lanes.run_block``
+        with ``record="final"``: the same collisions in the same root steps.
+    """
+    from jax.experimental import pallas as pl  # noqa: PLC0415 (only the GPU path needs Pallas)
+
+    batch, size = states0.shape
+    if batch % block:
+        raise ValueError(f"the batch ({batch}) must be a whole number of blocks of {block} orbits")
+    leaves, treedef = jax.tree.flatten(scene)
+    rows, count_rows = _padded(size), _padded(len(CONTACT_CODES) + 1)
+
+    def component_major(a, height):
+        return jnp.zeros((height, batch), a.dtype).at[: a.shape[1]].set(a.T)
+
+    lane_rows = pl.BlockSpec((rows, block), lambda i: (0, i))
+    count_spec = pl.BlockSpec((count_rows, block), lambda i: (0, i))
+    lane_values = pl.BlockSpec((block,), lambda i: (i,))
+    one = pl.BlockSpec((1,), lambda i: (0,))
+    compiler_params = None
+    if not interpret:
+        from jax.experimental.pallas import triton as pl_triton  # noqa: PLC0415
+
+        compiler_params = pl_triton.CompilerParams(num_warps=NUM_WARPS)
+    kernel = pl.pallas_call(
+        functools.partial(_kernel, treedef, len(leaves), size, block),
+        grid=(batch // block,),
+        in_specs=[one] * (len(leaves) + 1) + [lane_rows, lane_rows, lane_values, lane_values, count_spec],
+        out_specs=(lane_rows, lane_values, lane_values, count_spec),
+        out_shape=(
+            jax.ShapeDtypeStruct((rows, batch), jnp.float64),
+            jax.ShapeDtypeStruct((batch,), jnp.float64),
+            jax.ShapeDtypeStruct((batch,), jnp.float64),
+            jax.ShapeDtypeStruct((count_rows, batch), jnp.int64),
+        ),
+        interpret=interpret,
+        compiler_params=compiler_params,
+    )
+    state, time, error, counts = kernel(
+        *(jnp.reshape(jnp.asarray(leaf, jnp.float64), (1,)) for leaf in leaves),
+        jnp.reshape(jnp.asarray(steps, jnp.int32), (1,)),
+        component_major(states0, rows),
+        component_major(carry.state, rows),
+        carry.time,
+        carry.max_energy_error,
+        component_major(carry.contact_counts, count_rows),
+    )
+    return Carry(state[:size].T, time, error, counts[: len(CONTACT_CODES) + 1].T)
