@@ -517,10 +517,10 @@ class Explorer:
         self._say("cleared the clicked orbits")
         self._redraw()
 
-    def save(self, path=None) -> pathlib.Path:
-        """Write the figure as a PNG to ``path`` (default ``save_path``); return the path."""
+    def save(self, path=None, *, dpi: float = 110) -> pathlib.Path:
+        """Write the figure as a PNG to ``path`` (default ``save_path``) at ``dpi``; return the path."""
         target = pathlib.Path(self.save_path if path is None else path)
-        self.figure.savefig(target, dpi=110)  # with the status line as it was: the picture of what was done
+        self.figure.savefig(target, dpi=dpi)  # with the status line as it was: the picture of what was done
         self._say(f"saved {target}")
         self._redraw()
         return target
