@@ -48,6 +48,12 @@ API_PAGES = {
                        ["check", "CheckResult", "CheckReport", "CheckFlag"]),
     "api/explorer.md": ("Explorer", "The interactive section explorer.", ["explore"]),
 }
+# Objects a page shows after its public names: what those names return or take, documented
+# where they live (imported from there by a user who needs them).
+EXTRA_BLOCKS = {
+    "api/explorer.md": ["jaxbill._explorer.Explorer", "jaxbill._explorer.ClickedOrbit",
+                        "jaxbill._explorer.SectionChart", "jaxbill._explorer.register_section_chart"],
+}
 MORE_PAGE = "api/more.md"
 MODULE_PAGES = {"api/plotting.md": ("Plotting", "jaxbill.plotting")}
 
@@ -83,7 +89,9 @@ def api_pages() -> dict[str, str]:
     for path, (title, intro, names) in API_PAGES.items():
         shown = [n for n in names if n in public]
         listed.update(shown)
-        pages[path] = f"# {title}\n\n{intro}\n\n" + "\n".join(_block(n, getattr(jaxbill, n)) for n in shown)
+        blocks = [_block(n, getattr(jaxbill, n)) for n in shown]
+        blocks += [f"::: {target}\n" for target in EXTRA_BLOCKS.get(path, [])]
+        pages[path] = f"# {title}\n\n{intro}\n\n" + "\n".join(blocks)
     rest = [n for n in public if n not in listed]
     pages[MORE_PAGE] = "# More\n\nPublic names not yet given a page of their own.\n\n" + (
         "\n".join(_block(n, getattr(jaxbill, n)) for n in rest) if rest else "None at the moment.\n")
