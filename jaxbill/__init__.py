@@ -2,11 +2,17 @@
 
 Importing jaxbill switches JAX to float64 (``jax_enable_x64``): every collision
 time and state is computed in double precision, and the library's accuracy
-claims hold only there.
+claims hold only there. It also asks XLA:CPU, before JAX's backend starts, to
+compile small loops whole and to show one CPU device per core, unless the user
+has chosen otherwise (``jaxbill._backend``; ``jb.backend_settings()`` says what
+was set, ``JAXBILL_NO_XLA_SETTINGS=1`` sets nothing).
 """
 
 import jax
 
+from ._backend import backend_settings, configure
+
+configure()
 jax.config.update("jax_enable_x64", True)
 
 from ._chaos import (  # noqa: E402
@@ -49,15 +55,18 @@ from ._walls_sections import (  # noqa: E402
 )
 from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from ._run_files import Checkpoint  # noqa: E402
+from ._run_guard import RunInterrupted  # noqa: E402
 from ._sharding import orbit_mesh, orbit_sharded  # noqa: E402
 from ._streaming import Run, Section, SectionPoints, run  # noqa: E402
 from ._scene import angular_momentum, end_points, energy  # noqa: E402
 from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
 from ._stick_between_walls_3d import StickBetweenWalls3D  # noqa: E402
 from ._stick_in_circle import StickInCircle  # noqa: E402
+from ._stick_in_ellipse import StickInEllipse  # noqa: E402
 
 __all__ = [
     "StickInCircle",
+    "StickInEllipse",
     "StickBetweenWalls2D",
     "StickBetweenWalls3D",
     "collide",
@@ -68,8 +77,10 @@ __all__ = [
     "Section",
     "SectionPoints",
     "Checkpoint",
+    "RunInterrupted",
     "orbit_sharded",
     "orbit_mesh",
+    "backend_settings",
     "energy",
     "angular_momentum",
     "end_points",

@@ -118,16 +118,23 @@ class EllipseTable(eqx.Module):
         p, q = self.metric
         return jnp.minimum(p, q), jnp.maximum(p, q)
 
-    def gap(self, points: jax.Array) -> jax.Array:
-        """``ab - P^T D P`` of points ``(..., 2)``, shape ``(...)``; ``>= 0`` inside."""
+    def gap_at(self, x, y):
+        """``ab - P^T D P`` at ``P = (x, y)`` (scalars or equal-shaped arrays); ``>= 0`` inside."""
         p, q = self.metric
-        x, y = points[..., 0], points[..., 1]
         return self.a * self.b - (p * (x * x) + q * (y * y))
 
-    def normal(self, points: jax.Array) -> jax.Array:
-        """Outward normal ``N = D P = -grad g / 2`` (not unit), shape ``(..., 2)``."""
+    def normal_at(self, x, y):
+        """Outward normal ``N = D P = -grad g / 2`` at ``P = (x, y)`` (not unit): ``(Nx, Ny)``."""
         p, q = self.metric
-        return jnp.stack([p * points[..., 0], q * points[..., 1]], axis=-1)
+        return p * x, q * y
+
+    def gap(self, points: jax.Array) -> jax.Array:
+        """``gap_at`` of points ``(..., 2)``, shape ``(...)``."""
+        return self.gap_at(points[..., 0], points[..., 1])
+
+    def normal(self, points: jax.Array) -> jax.Array:
+        """``normal_at`` of points ``(..., 2)``, shape ``(..., 2)``."""
+        return jnp.stack(self.normal_at(points[..., 0], points[..., 1]), axis=-1)
 
     def reach(self, pair_radius: jax.Array) -> jax.Array:
         """``K >= |D c|`` until the first contact of a body with contact pairs ``+-r``, ``|r| = pair_radius``."""
@@ -135,18 +142,18 @@ class EllipseTable(eqx.Module):
         inner = self.gap_scale * (1.0 + _REACH_SLACK) - pair_radius**2 * d_min
         return jnp.sqrt(d_max * jnp.maximum(inner, 0.0))
 
-    def curvature_bounds(self, v, omega, radius, reach):
+    def curvature_bounds(self, vx, vy, omega, radius, reach):
         """``(lower_curv, upper_curv)``: ``-lower_curv <= g'' <= upper_curv`` for every contact point.
 
-        ``v`` ``(2,)`` the centre's velocity, ``omega`` the spin, ``radius`` the
+        ``(vx, vy)`` the centre's velocity, ``omega`` the spin, ``radius`` the
         largest distance of a contact point from the centre, ``reach`` a bound
         on ``|D c(t)|`` (``reach``). See the module docstring.
         """
         p, q = self.metric
-        dv = jnp.stack([p * v[0], q * v[1]])
-        straight = 2.0 * (v[0] * dv[0] + v[1] * dv[1])  # 2 v^T D v
+        dvx, dvy = p * vx, q * vy
+        straight = 2.0 * (vx * dvx + vy * dvy)  # 2 v^T D v
         spin = jnp.abs(omega)
-        wobble = 2.0 * radius * (2.0 * spin * jnp.linalg.norm(dv) + spin * spin * reach)
+        wobble = 2.0 * radius * (2.0 * spin * jnp.sqrt(dvx * dvx + dvy * dvy) + spin * spin * reach)
         wobble = wobble + 2.0 * (spin * radius) ** 2 * jnp.abs(p - q)
         return straight + wobble, wobble - straight
 
@@ -163,7 +170,7 @@ class EllipseTable(eqx.Module):
         x_major = self.a >= self.b
         return jnp.where(x_major, along_major, along_minor), jnp.where(x_major, along_minor, along_major)
 
-    def quiet_interval(self, c: jax.Array, v: jax.Array, radius: jax.Array):
+    def quiet_interval(self, cx, cy, vx, vy, radius: jax.Array):
         """``(t_in, t_out)``: the times the centre ``c + v t`` (``t >= 0``) is inside the quiet ellipse.
 
         Empty (``t_in >= t_out``, both ``inf``) when the line misses it or the
@@ -173,23 +180,21 @@ class EllipseTable(eqx.Module):
         empty = (sx <= 0.0) | (sy <= 0.0)
         sx, sy = jnp.where(empty, 1.0, sx), jnp.where(empty, 1.0, sy)
         # In units of the semi-axes the quiet ellipse is the unit disc.
-        p = jnp.stack([c[0] / sx, c[1] / sy])
-        w = jnp.stack([v[0] / sx, v[1] / sy])
-        t_in, t_out = _unit_disc_crossing(p, w)
+        t_in, t_out = _unit_disc_crossing(cx / sx, cy / sy, vx / sx, vy / sy)
         return jnp.where(empty, jnp.inf, t_in), jnp.where(empty, jnp.inf, t_out)
 
-    def exit_time(self, point: jax.Array, velocity: jax.Array) -> jax.Array:
-        """First ``t >= 0`` at which ``point + velocity t`` reaches the wall moving outwards.
+    def exit_time(self, px, py, vx, vy) -> jax.Array:
+        """First ``t >= 0`` at which ``P + v t`` reaches the wall moving outwards.
 
         The gap along the line is ``g(t) = g0 - 2 h t - s t^2`` with
-        ``g0 = g(point)``, ``h = point^T D velocity``, ``s = velocity^T D velocity``.
-        A point on the wall moving inwards (``h <= 0``) gets the far root, never
-        ``t = 0``; one on or through it moving outwards gets 0; a point at rest ``inf``.
+        ``g0 = g(P)``, ``h = P^T D v``, ``s = v^T D v``. A point on the wall
+        moving inwards (``h <= 0``) gets the far root, never ``t = 0``; one on
+        or through it moving outwards gets 0; a point at rest ``inf``.
         """
         p, q = self.metric
-        speed2 = p * velocity[0] * velocity[0] + q * velocity[1] * velocity[1]
-        h = p * point[0] * velocity[0] + q * point[1] * velocity[1]
-        g0 = self.gap(point)
+        speed2 = p * vx * vx + q * vy * vy
+        h = p * px * vx + q * py * vy
+        g0 = self.gap_at(px, py)
         disc = h * h + speed2 * g0
         root = jnp.sqrt(jnp.maximum(disc, 0.0))
         # The positive root of s t^2 + 2 h t - g0 = 0 in the form without
@@ -203,15 +208,15 @@ class EllipseTable(eqx.Module):
         return jnp.where(speed2 > 0.0, jnp.maximum(t, 0.0), jnp.inf)
 
 
-def _unit_disc_crossing(p: jax.Array, w: jax.Array):
+def _unit_disc_crossing(px, py, wx, wy):
     """``(t_in, t_out)``: the times ``t >= 0`` with ``|p + w t| < 1`` (both ``inf`` if none)."""
-    speed2 = w @ w
-    h = p @ w
-    excess = p @ p - 1.0
+    speed2 = wx * wx + wy * wy
+    h = px * wx + py * wy
+    excess = px * px + py * py - 1.0
     disc = h * h - speed2 * excess
     root = jnp.sqrt(jnp.maximum(disc, 0.0))
     # The two roots of speed2 t^2 + 2 h t + excess = 0, each without cancellation.
-    big = -(h + jnp.copysign(root, h))
+    big = -(h + jnp.where(h < 0.0, -root, root))
     safe_big = jnp.where(big == 0.0, 1.0, big)
     t1, t2 = big / jnp.where(speed2 > 0.0, speed2, 1.0), excess / safe_big
     t_in, t_out = jnp.minimum(t1, t2), jnp.maximum(t1, t2)

@@ -53,10 +53,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import RootBounds
-from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
+from ._first_root import RootBounds, first_smallest, select
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, component
 from ._smooth_table import EllipseTable
-from ._step import searched_contact_time
+from ._step import components, searched_contact_time, stacked, where
 from ._validation import (
     broadcast_parameters,
     check_parameter,
@@ -244,49 +244,60 @@ class StickInEllipse(eqx.Module):
         size = jnp.maximum(self.a, self.b)
         return motion_is_representable(state[..., 3:5], state[..., 5] ** 2, self.energy(state), size)
 
-    def orbit_constants(self, state0: jax.Array) -> jax.Array | None:
-        """A stick that never turns keeps its direction ``u`` for a whole orbit."""
-        return self.direction(state0) if self.kind == "static" else None
+    def orbit_constants(self, state0: tuple):
+        """A stick that never turns keeps its direction ``(ux, uy)`` for a whole orbit (``state0``: components)."""
+        return _direction(self.kind, state0[2]) if self.kind == "static" else None
 
-    # -- the engine's questions (jaxbill._step): one collision from these pieces --
-    # ``root_search_setup``, ``contact_gaps`` and ``resolve_contact`` are the
-    # three pure functions of one orbit's values; the engine's names for them
-    # (``root_search``, ``gaps_along_flight``, ``collide_at``) wrap them, and
-    # ``jaxbill._step`` differentiates the searched contact time implicitly.
+    # -- the engine's questions (jaxbill._step) ----------------------------------
+    # States are components (x, y, alpha, vx, vy, omega): scalars, or arrays of
+    # one shape (a block of orbits inside a kernel), or a (6,) array; results
+    # are tuples. jaxbill._step differentiates the searched contact time
+    # implicitly.
 
     @property
     def searches_for_roots(self) -> bool:
         """Static: a turning stick's gaps are transcendental in time; the others' are quadratics."""
         return self.kind == "rotor"
 
-    def root_search(self, state: jax.Array):
+    def root_search(self, state: tuple):
         """``(profile, RootBounds)`` of the flight from ``state``: the profile is the state itself."""
         return state, RootBounds(*self.root_search_setup(state))
 
-    def gaps_along_flight(self, state: jax.Array, t: jax.Array):
-        """``contact_gaps`` under the state machine's name."""
-        return self.contact_gaps(state, t)
+    def gaps_along_flight(self, state: tuple, t: jax.Array):
+        """Both ends' gaps ``ab - P_k^T D P_k`` (area units) and their time derivatives after a flight of ``t`` (2-tuples)."""
+        x, y, alpha, vx, vy, omega = state
+        phi = alpha + omega * t
+        cu, su = jnp.cos(phi), jnp.sin(phi)
+        table = self.table
+        gaps, slopes = [], []
+        for sign in (1.0, -1.0):
+            arm = sign * self.ell
+            px, py = x + vx * t + arm * cu, y + vy * t + arm * su
+            ex, ey = vx - arm * omega * su, vy + arm * omega * cu
+            nx, ny = table.normal_at(px, py)
+            gaps.append(table.gap_at(px, py))
+            slopes.append(-2.0 * (nx * ex + ny * ey))
+        return tuple(gaps), tuple(slopes)
 
-    def closed_form_contact(self, state: jax.Array, static_direction: jax.Array | None):
+    def closed_form_contact(self, state: tuple, static_direction):
         """``(t, index)`` for the static stick and the point: each end (the point) moves on a line."""
-        v = state[3:5]
+        x, y, _, vx, vy, _ = state
         table = self.table
         if self.kind == "point":
-            return table.exit_time(state[0:2], v), jnp.int32(0)
-        times = jnp.stack([table.exit_time(end, v) for end in self.end_points(state, static_direction)])
-        index = jnp.argmin(times).astype(jnp.int32)
-        return times[index], index
+            t = table.exit_time(x, y, vx, vy)
+            return t, jnp.zeros(jnp.shape(t), jnp.int32)
+        ux, uy = static_direction
+        t_p1 = table.exit_time(x + self.ell * ux, y + self.ell * uy, vx, vy)
+        t_p2 = table.exit_time(x - self.ell * ux, y - self.ell * uy, vx, vy)
+        return jnp.minimum(t_p1, t_p2), first_smallest((t_p1, t_p2))
 
-    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, static_direction: jax.Array | None):
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, static_direction):
         """The flight to ``t`` and the impulse(s) of end ``index`` (0: P1, 1: P2): ``(state, contact)``."""
-        moved = self.flight(state, t)
-        if self.kind == "static" and static_direction is not None:
-            return self._resolve(moved, index, static_direction)
-        return self.resolve_contact(moved, index)
+        moved = _flight(self.kind, state, t)
+        u = static_direction if self.kind == "static" else _direction(self.kind, moved[2])
+        return self._resolve(moved, index, u)
 
-    # -- the three functions of one orbit's values an engine drives ------------
-
-    def root_search_setup(self, state: jax.Array):
+    def root_search_setup(self, state: tuple):
         """The first-root search's bounds for the flight from ``state``.
 
         Returns ``(lower_curv, upper_curv, quiet_in, quiet_out, time_scale)``,
@@ -299,60 +310,69 @@ class StickInEllipse(eqx.Module):
         Derivations: ``jaxbill._smooth_table``.
         """
         table = self.table
-        c, v, omega = state[0:2], state[3:5], state[5]
+        x, y, _, vx, vy, omega = state
         if self.kind == "static":
             omega = jnp.zeros_like(omega)  # it never turns (and I = inf gives no spin term)
         p, q = table.metric
-        centre_reach = jnp.maximum(table.reach(self.ell), jnp.hypot(p * c[0], q * c[1]))
-        lower_curv, upper_curv = table.curvature_bounds(v, omega, self.ell, centre_reach)
-        quiet_in, quiet_out = table.quiet_interval(c, v, self.ell)
+        centre_reach = jnp.maximum(table.reach(self.ell), jnp.sqrt((p * x) ** 2 + (q * y) ** 2))
+        lower_curv, upper_curv = table.curvature_bounds(vx, vy, omega, self.ell, centre_reach)
+        quiet_in, quiet_out = table.quiet_interval(x, y, vx, vy, self.ell)
         size = jnp.sqrt(table.gap_scale)
-        time_scale = 1.0 / (jnp.linalg.norm(v) / size + jnp.abs(omega))
+        time_scale = 1.0 / (jnp.sqrt(vx * vx + vy * vy) / size + jnp.abs(omega))
         return lower_curv, upper_curv, quiet_in, quiet_out, time_scale
 
     def contact_gaps(self, state: jax.Array, t: jax.Array):
-        """Both ends' gaps and their time derivatives after a free flight of ``t``: ``(gap, slope)``, each ``(2,)``.
-
-        ``gap`` in units of area (``ab``), ``slope`` per time unit.
-        """
-        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
-        phi = alpha + omega * t
-        cu, su = jnp.cos(phi), jnp.sin(phi)
-        ends = jnp.asarray(_ENDS)[:, None]
-        arm = self.ell * ends
-        points = jnp.stack([x + vx * t, y + vy * t])[None, :] + arm * jnp.stack([cu, su])[None, :]
-        velocities = jnp.stack([vx, vy])[None, :] + (arm * omega) * jnp.stack([-su, cu])[None, :]
-        table = self.table
-        gap = table.gap(points)
-        slope = -2.0 * jnp.sum(table.normal(points) * velocities, axis=-1)
-        return gap, slope
+        """``gaps_along_flight`` of a state array ``(6,)`` as arrays: ``(gap, slope)``, each ``(2,)``."""
+        gaps, slopes = self.gaps_along_flight(components(state), t)
+        return jnp.stack(gaps), jnp.stack(slopes)
 
     def resolve_contact(self, state: jax.Array, index: jax.Array):
-        """The impulse(s) at a contact of end ``index`` (0: P1, 1: P2): ``(new_state, contact)``.
+        """The impulse(s) at a contact of end ``index`` (0: P1, 1: P2) of a state ``(6,)`` at the contact.
 
-        ``state`` is at the contact. If the other end is on the wall too (to
-        ``64`` ulps of ``ab``) and approaching, both are kicked, the faster one
-        first and the other only if it still approaches, and the contact is 2.
+        Returns ``(new_state, contact)``. If the other end is on the wall too
+        (to ``64`` ulps of ``ab``) and approaching, both are kicked, the faster
+        one first and the other only if it still approaches, and the contact is 2.
         """
-        return self._resolve(state, index, self.direction(state))
+        parts = components(state)
+        new, contact = self._resolve(parts, index, _direction(self.kind, parts[2]))
+        return stacked(new), contact
 
-    def _resolve(self, state, index, u):
+    def _resolve(self, state: tuple, index, u: tuple):
         if self.kind == "point":
-            return self.kick(state, 0.0, u), jnp.int32(1)
-        ends = jnp.asarray(_ENDS)
-        gaps = self.gaps(state, u)
-        speeds = self.approach_speeds(state, u)
+            return self.kick(state, 0.0, u), jnp.ones(jnp.shape(index), jnp.int32)
+        gaps = self._end_gaps(state, u)
+        speeds = self._end_approach_speeds(state, u)
         other = 1 - index
-        corner = (gaps[other] <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.gap_scale) & (speeds[other] > 0.0)
+        gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
+        corner = (gap_other <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.gap_scale) & (speed_other > 0.0)
         # A deterministic rule for an ill-posed event: the faster-approaching
         # end first, the other after it if it still approaches.
-        first = jnp.where(corner & (speeds[other] > speeds[index]), other, index)
+        first = jnp.where(corner & (speed_other > speed_index), other, index)
         second = 1 - first
-        state = self.kick(state, ends[first], u)
-        still_approaching = self.approach_speeds(state, u)[second] > 0.0
-        state = jnp.where(corner & still_approaching, self.kick(state, ends[second], u), state)
-        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.int32(ends[index]))
-        return state, contact
+        kicked = self.kick(state, select(_ENDS, first), u)
+        still_approaching = select(self._end_approach_speeds(kicked, u), second) > 0.0
+        kicked = where(corner & still_approaching, self.kick(kicked, select(_ENDS, second), u), kicked)
+        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
+        return kicked, contact
+
+    def _end_gaps(self, state: tuple, u: tuple) -> tuple:
+        x, y = state[0], state[1]
+        ux, uy = u
+        table = EllipseTable(self.a, self.b)
+        return tuple(table.gap_at(x + sign * self.ell * ux, y + sign * self.ell * uy) for sign in _ENDS)
+
+    def _end_approach_speeds(self, state: tuple, u: tuple) -> tuple:
+        """Velocity of each end along the wall's outward unit normal there; > 0 approaching."""
+        x, y, _, vx, vy, omega = state
+        ux, uy = u
+        table = EllipseTable(self.a, self.b)
+        speeds = []
+        for sign in _ENDS:
+            arm = sign * self.ell
+            nx, ny = table.normal_at(x + arm * ux, y + arm * uy)
+            ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+            speeds.append((nx * ex + ny * ey) / jnp.sqrt(nx * nx + ny * ny))
+        return tuple(speeds)
 
     # -- geometry and flight -------------------------------------------------
 
@@ -365,9 +385,7 @@ class StickInEllipse(eqx.Module):
 
     def direction(self, state: jax.Array) -> jax.Array:
         """The stick's unit vector ``u = (cos alpha, sin alpha)``, shape ``(..., 2)`` (``(1, 0)`` for a point)."""
-        if self.kind == "point":
-            return jnp.stack([jnp.ones_like(state[..., 2]), jnp.zeros_like(state[..., 2])], axis=-1)
-        return jnp.stack([jnp.cos(state[..., 2]), jnp.sin(state[..., 2])], axis=-1)
+        return jnp.stack(_direction(self.kind, state[..., 2]), axis=-1)
 
     def end_points(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
@@ -378,32 +396,22 @@ class StickInEllipse(eqx.Module):
 
     def gaps(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Contact gaps ``ab - P_k^T D P_k`` of both ends, shape ``(..., 2)``; >= 0 inside."""
-        ends = self.end_points(state, u)
-        return EllipseTable(self.a[..., None], self.b[..., None]).gap(ends)
+        u = self.direction(state) if u is None else u
+        return jnp.stack(self._end_gaps(components(state), components(u)), axis=-1)
 
     def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
         """Free flight for time ``t``; ``alpha`` wrapped into ``[-pi, pi)`` (see ``StickInCircle.flight``)."""
-        x, y, alpha, vx, vy, omega = (state[..., i] for i in range(6))
-        if self.kind != "static":
-            alpha = alpha + omega * t
-            alpha = jnp.remainder(alpha + jnp.pi, 2.0 * jnp.pi) - jnp.pi
-        return jnp.stack([x + vx * t, y + vy * t, alpha, vx, vy, omega], axis=-1)
+        return stacked(_flight(self.kind, components(state), t))
 
     def approach_speeds(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Velocity of each end along the wall's outward unit normal there, shape ``(..., 2)``; > 0 approaching."""
         u = self.direction(state) if u is None else u
-        ends = self.end_points(state, u)
-        v = state[..., 3:5]
-        spin = (self.ell * state[..., 5])[..., None]
-        u_perp = jnp.stack([-u[..., 1], u[..., 0]], axis=-1)
-        end_velocity = jnp.stack([v + spin * u_perp, v - spin * u_perp], axis=-2)
-        normal = EllipseTable(self.a[..., None], self.b[..., None]).normal(ends)
-        return jnp.sum(normal * end_velocity, axis=-1) / jnp.linalg.norm(normal, axis=-1)
+        return jnp.stack(self._end_approach_speeds(components(state), components(u)), axis=-1)
 
     # -- the impulse law ------------------------------------------------------
 
-    def kick(self, state: jax.Array, end, u: jax.Array | None = None) -> jax.Array:
-        """Elastic frictionless impulse at end ``end`` (+1 or -1) on the wall: the mass-metric reflection.
+    def kick(self, state: tuple, end, u: tuple) -> tuple:
+        """Elastic frictionless impulse at end ``end`` (+1 or -1) on the wall: the mass-metric reflection (components).
 
         ``N = D P`` scaled by ``sqrt(pi/2 / (ab))`` (any positive factor gives
         the same impulse; this one keeps ``|N|^2`` near ``pi/2``, and equals
@@ -412,8 +420,8 @@ class StickInEllipse(eqx.Module):
         ``v' = v - w N``, ``omega' = omega - w (M/I) s``. The energy is
         conserved exactly for whatever ``N`` rounding produced.
         """
-        x, y, alpha, vx, vy, omega = (state[i] for i in range(6))
-        ux, uy = self.direction(state) if u is None else u
+        x, y, alpha, vx, vy, omega = state
+        ux, uy = u
         arm = end * self.ell
         p, q = self.table.metric
         scale = math.sqrt(_KICK_DENOMINATOR) / jnp.sqrt(self.gap_scale)
@@ -422,27 +430,29 @@ class StickInEllipse(eqx.Module):
         v_n = vx * nx + vy * ny + omega * s
         ratio = self.mass * self.inverse_inertia
         change = 2.0 * v_n / (nx * nx + ny * ny + ratio * (s * s))
-        return jnp.stack([x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s])
+        return x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s
 
     # -- collision times --------------------------------------------------------
 
     def next_contact(self, state: jax.Array, static_direction: jax.Array | None = None):
         """``(t, index, ok)``: time to the next contact (``inf`` if none), which end (0: P1, 1: P2), and
         ``ok = False`` if the root search hit its step bound. Differentiable (implicitly, for the search)."""
+        parts = components(state)
         if self.kind == "rotor":
-            return searched_contact_time(self, state)
-        t, index = self.closed_form_contact(state, static_direction)
+            return searched_contact_time(self, parts)
+        direction = self.orbit_constants(parts) if static_direction is None else components(static_direction)
+        t, index = self.closed_form_contact(parts, direction)
         return t, index, jnp.array(True)
 
     # -- invariants and watched quantities ----------------------------------------
 
     def energy(self, state: jax.Array) -> jax.Array:
         """``M |v|^2 / 2 + I omega^2 / 2`` (the static stick drops the spin term: omega = 0)."""
-        v2 = state[..., 3] ** 2 + state[..., 4] ** 2
-        e = 0.5 * self.mass * v2
+        vx, vy, omega = (component(state, i) for i in (3, 4, 5))
+        e = 0.5 * self.mass * (vx**2 + vy**2)
         if self.kind == "static":
             return e
-        return e + _spin_term(self.kind, state[..., 5], 0.5 * self.inertia * state[..., 5] ** 2)
+        return e + _spin_term(self.kind, omega, 0.5 * self.inertia * omega**2)
 
     def angular_momentum(self, state: jax.Array) -> jax.Array:
         """Angular momentum about the table's centre, ``M (x vy - y vx) + I omega``, shape ``(...)``.
@@ -491,6 +501,21 @@ class StickInEllipse(eqx.Module):
         """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
         state = jnp.asarray(state)
         return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+
+def _direction(kind: str, alpha):
+    """``(cos alpha, sin alpha)``; ``(1, 0)`` for a point, which never needs it."""
+    if kind == "point":
+        return jnp.ones_like(alpha), jnp.zeros_like(alpha)
+    return jnp.cos(alpha), jnp.sin(alpha)
+
+
+def _flight(kind: str, state: tuple, t) -> tuple:
+    """Free flight of the components for time ``t``; ``alpha`` wrapped into ``[-pi, pi)``."""
+    x, y, alpha, vx, vy, omega = state
+    if kind != "static":  # the static stick never turns (omega = 0)
+        alpha = jnp.remainder(alpha + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+    return x + vx * t, y + vy * t, alpha, vx, vy, omega
 
 
 def _spin_term(kind, omega, term):

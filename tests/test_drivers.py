@@ -32,6 +32,9 @@ def scenes():
         "walls 2D": jb.StickBetweenWalls2D(h=3.0, ell=1.0),
         "walls 2D static": jb.StickBetweenWalls2D(h=3.0, ell=1.0, inertia=INF),
         "walls 3D": jb.StickBetweenWalls3D(h=3.0, ell=1.0),
+        "ellipse": jb.StickInEllipse(a=2.0, b=1.4, ell=0.5),
+        "ellipse static": jb.StickInEllipse(a=2.0, b=1.4, ell=0.5, inertia=INF),
+        "ellipse point": jb.StickInEllipse(a=2.0, b=1.4, ell=0.0),
     }
 
 
@@ -40,6 +43,14 @@ def start_states(scene, count, seed=7):
     if isinstance(scene, jb.StickInCircle):
         return np.asarray(random_states(np.random.default_rng(seed), count, 2.0, float(scene.ell), scene.kind))
     rng = np.random.default_rng(seed)
+    if isinstance(scene, jb.StickInEllipse):
+        # Centres within 0.3 of the middle: both ends (ell <= 0.5) well inside b = 1.4.
+        radius, angle = 0.3 * np.sqrt(rng.uniform(size=count)), rng.uniform(-np.pi, np.pi, count)
+        v = rng.normal(size=(count, 2))
+        omega = 0.0 if scene.kind != "rotor" else rng.normal(size=count)
+        s = np.stack([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-np.pi, np.pi, count),
+                      v[:, 0], v[:, 1], np.broadcast_to(omega, (count,))], axis=1)
+        return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
     if scene.state_size == 6:
         z = rng.uniform(1.2, 1.8, count)
         theta = rng.uniform(-np.pi, np.pi, count)
