@@ -394,6 +394,7 @@ class Explorer:
             of the value).
         clear_button, save_button: ``matplotlib.widgets.Button``.
         survey_points: ``(B, n + 1, 2)`` the survey's section points.
+        survey_message: what the survey was and how long it took.
         orbits: the clicked orbits, a list of ``ClickedOrbit``.
         save_path: where the save button writes its PNG.
         status: the last message in the status line.
@@ -459,7 +460,7 @@ class Explorer:
         self._section_points(self.scene, np.asarray(states)[None], np.asarray(contacts)[None])
         self._show_survey_orbit()
         self._say(f"click in the section to start an orbit there ({self.click_collisions} collisions); "
-                  f"{self._survey_message}")
+                  f"{self.survey_message}")
 
     # -- what the callbacks do (callable directly too) --
 
@@ -554,7 +555,7 @@ class Explorer:
             self.invariants = {**self.chart.default_invariants(scene), **self._given_invariants}
             self._draw_scene_and_survey()
             self._rerun_clicked_orbits()
-            self._say(f"{name} = {10.0**log_value:.4g}: {self._survey_message}")
+            self._say(f"{name} = {10.0**log_value:.4g}: {self.survey_message}")
             self._redraw()
 
         return moved
@@ -572,7 +573,7 @@ class Explorer:
         points = np.concatenate([starts, *(p for _, p in self._orbit_chunks(states, self.survey_collisions))], 1)
         self.survey_points = points
         seconds = time.perf_counter() - started
-        self._survey_message = (f"survey of {self.survey_orbits} orbits x {self.survey_collisions} collisions "
+        self.survey_message = (f"survey of {self.survey_orbits} orbits x {self.survey_collisions} collisions "
                                 f"in {seconds:.2f} s")
         import matplotlib
 

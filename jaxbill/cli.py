@@ -87,7 +87,7 @@ def _explore(args: argparse.Namespace) -> int:
         print(explorer.status)
     path = explorer.save(args.save)
     print(f"wrote {path}: {explorer.chart.title} of {type(explorer.scene).__name__} with "
-          f"{len(explorer.orbits)} clicked orbits over a {explorer._survey_message}")
+          f"{len(explorer.orbits)} clicked orbits over a {explorer.survey_message}")
     return 0
 
 
