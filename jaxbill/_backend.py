@@ -1,15 +1,22 @@
-"""The two XLA:CPU settings jaxbill makes at import, before JAX starts its backend.
+"""The XLA:CPU settings jaxbill makes at import, before JAX starts its backend.
 
-1. **Small loops compiled whole.** XLA:CPU compiles a ``while_loop`` whose
-   carry is small into one native function; a larger loop runs each of its
-   kernels as a separate call per iteration. An orbit's loop carries its
-   records, so without this option every collision pays about forty calls
-   (measured: a single spinning-stick orbit runs 3-4x faster with it, a batch
-   about 1.3x). jaxbill raises the byte threshold through
-   ``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=...``.
-2. **Every core a device.** JAX shows one CPU device unless told otherwise, and
-   a batch split over the devices (``jb.run``, ``jb.orbit``) then uses one
-   core. jaxbill asks for one CPU device per core available to the process.
+1. **Every core a device** (on by default). JAX shows one CPU device unless
+   told otherwise, and a batch split over the devices (``jb.run``,
+   ``jb.orbit``) then uses one core. jaxbill asks for one CPU device per core
+   available to the process. This changes no result: an orbit is bitwise the
+   same on any number of devices (``jaxbill._sharding``).
+2. **Small loops compiled whole** (opt-in: ``JAXBILL_COMPILE_LOOPS_WHOLE=1``).
+   XLA:CPU compiles a ``while_loop`` whose carry is small into one native
+   function; a larger loop runs each of its kernels as a separate call per
+   iteration. An orbit's loop carries its records, so every collision pays
+   about forty calls; raising the byte threshold
+   (``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=...``)
+   makes one spinning-stick orbit 3-4x faster and a batch about 1.3x
+   (``benchmarks/bench_vs_numba.py``). It is not the default because LLVM then
+   optimises each whole loop in its own context and contracts multiply-adds
+   differently in different programs: ``jb.run`` and ``jb.orbit`` of the same
+   orbit, or a batch and its single orbits, then agree only to the last bit,
+   not bitwise (every reference test still passes).
 
 Both are process-wide and take effect only if set before the backend starts
 (the first computation, or ``jax.devices()``). jaxbill never overrides a
@@ -17,8 +24,8 @@ choice the user made: an ``XLA_FLAGS`` that already names
 ``xla_backend_extra_options``, or a device count given through
 ``XLA_FLAGS`` (``xla_force_host_platform_device_count``), the
 ``JAX_NUM_CPU_DEVICES`` variable or ``jax.config``, is left as it is. Import
-jaxbill after JAX has started its backend and neither can be set: the results
-are the same to rounding, only slower (``backend_settings()`` says what
+jaxbill after JAX has started its backend and nothing can be set: the results
+are the same, only a batch uses one core (``backend_settings()`` says what
 happened). Set ``JAXBILL_NO_XLA_SETTINGS=1`` to make no setting at all.
 """
 
@@ -61,6 +68,8 @@ def configure() -> None:
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_backend_extra_options" in flags:
         _settings["small_loops"] = "left to the user's XLA_FLAGS"
+    elif not os.environ.get("JAXBILL_COMPILE_LOOPS_WHOLE"):
+        _settings["small_loops"] = "not set (opt in with JAXBILL_COMPILE_LOOPS_WHOLE=1)"
     else:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_backend_extra_options={SMALL_LOOP_OPTION}".strip()
         _settings["small_loops"] = f"set ({SMALL_LOOP_OPTION})"

@@ -1,0 +1,45 @@
+"""The XLA:CPU settings made at import: one CPU device per core, small loops whole on request,
+and never over a choice the user made (each case in a fresh interpreter: they are process-wide)."""
+
+import json
+import os
+import subprocess
+import sys
+
+REPORT = (
+    "import json, os, jax; {before}import jaxbill as jb; "
+    "print(json.dumps({{'devices': len(jax.devices()), 'settings': jb.backend_settings(), "
+    "'flags': os.environ.get('XLA_FLAGS', '')}}))"
+)
+
+
+def _fresh(env_changes=None, before=""):
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "JAXBILL_COMPILE_LOOPS_WHOLE", "JAXBILL_NO_XLA_SETTINGS")}
+    env.update(env_changes or {})
+    out = subprocess.run([sys.executable, "-c", REPORT.format(before=before)], env=env, capture_output=True,
+                         text=True, timeout=120, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_one_cpu_device_per_core_and_no_loop_option_by_default():
+    report = _fresh()
+    assert report["devices"] == len(os.sched_getaffinity(0))
+    assert "small_while_loop" not in report["flags"]
+    assert report["settings"]["small_loops"].startswith("not set")
+
+
+def test_small_loops_on_request_and_users_choices_kept():
+    report = _fresh({"JAXBILL_COMPILE_LOOPS_WHOLE": "1"})
+    assert "xla_cpu_small_while_loop_byte_threshold=1000000000" in report["flags"]
+    users = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=7"
+    report = _fresh({"JAXBILL_COMPILE_LOOPS_WHOLE": "1", "XLA_FLAGS": users, "JAX_NUM_CPU_DEVICES": "1"})
+    assert report["flags"] == users and report["devices"] == 1
+    assert report["settings"] == {"small_loops": "left to the user's XLA_FLAGS", "cpu_devices": "left to the user's choice"}
+
+
+def test_too_late_when_the_backend_has_started_and_opting_out():
+    report = _fresh(before="jax.devices(); ")
+    assert report["devices"] == 1 and report["settings"]["cpu_devices"].startswith("not set: JAX's backend had started")
+    report = _fresh({"JAXBILL_NO_XLA_SETTINGS": "1"})
+    assert report["devices"] == 1 and "JAXBILL_NO_XLA_SETTINGS" in report["settings"]["cpu_devices"]
