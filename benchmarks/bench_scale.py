@@ -206,14 +206,19 @@ def root_steps(ell, orbits, collisions) -> np.ndarray:
     import jax.numpy as jnp
 
     import jaxbill as jb
-    from jaxbill._stick_in_circle import _rotor_search
+    from jaxbill._first_root import first_root
+    from jaxbill._step import MAX_ROOT_STEPS, components
 
     scene = _scene(jb, ell, None)
     states0 = jnp.asarray(_states(ell, None, orbits, seed=1))
     orbit = jb.orbit(scene, states0, collisions)
     before = jnp.concatenate([states0[:, None], orbit.state[:, :-1]], axis=1).reshape(-1, 6)
-    steps = jax.jit(jax.vmap(lambda s: _rotor_search(scene, s)[2]))(before)
-    return np.asarray(steps)
+
+    def steps_of(state):
+        profile, bounds = scene.root_search(components(state))
+        return first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, MAX_ROOT_STEPS)[2]
+
+    return np.asarray(jax.jit(jax.vmap(steps_of))(before))
 
 
 # -- report ---------------------------------------------------------------------------

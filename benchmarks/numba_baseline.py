@@ -8,7 +8,7 @@ implementations of one algorithm, not two algorithms:
 
 * the spinning stick in a circle (``StickInCircle``, finite inertia): the quiet
   interval of ``_disc_crossing`` (radius ``R - ell``), the curvature bounds and
-  time scale of ``_rotor_search``, the safe steps and stopping rule of
+  time scale of ``_rotor_bounds``, the safe steps and stopping rule of
   ``jaxbill._first_root`` (4 ulps of ``max(t, time_scale)``, at most 4096 steps),
   the impulse of ``StickInCircle.kick`` (normal scaled by ``sqrt(pi/2)/R``, one
   mass ratio ``M/I``), the corner rule (64 ulps of ``R^2``) and the angle wrap
@@ -686,33 +686,24 @@ def _relative_difference(a, b):
 def jaxbill_root_steps(params, states_before):
     """Steps of jaxbill's own root search from each state ``(m, 6)`` (private API; 0 for closed forms).
 
-    Uses the scene's ``root_search``/``gaps_along_flight`` where the engine
-    has them, else the older ``_rotor_search``/``_flat_walls._search``.
+    Uses the scene's own ``root_search``/``gaps_along_flight`` (``jaxbill._step``).
     """
     import jax  # noqa: PLC0415
     import jax.numpy as jnp  # noqa: PLC0415
+
+    from jaxbill._first_root import first_root  # noqa: PLC0415
+    from jaxbill._step import MAX_ROOT_STEPS as jaxbill_max_steps  # noqa: PLC0415
+    from jaxbill._step import components  # noqa: PLC0415
 
     scene = jaxbill_scene(params)
     kind = int(params[0])
     if kind not in (ROTOR, WALLS_ROTOR):
         return np.zeros(len(states_before), np.int64)
-    if hasattr(scene, "root_search"):
-        from jaxbill._first_root import first_root  # noqa: PLC0415
-        from jaxbill._step import MAX_ROOT_STEPS as jaxbill_max_steps  # noqa: PLC0415
 
-        def steps(state):
-            profile, bounds = scene.root_search(state)
-            return first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, jaxbill_max_steps)[2]
-    elif kind == ROTOR:
-        from jaxbill._stick_in_circle import _rotor_search  # noqa: PLC0415
+    def steps(state):
+        profile, bounds = scene.root_search(components(state))
+        return first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, jaxbill_max_steps)[2]
 
-        def steps(state):
-            return _rotor_search(scene, state)[2]
-    else:
-        from jaxbill import _flat_walls  # noqa: PLC0415
-
-        def steps(state):
-            return _flat_walls._search(scene.vertical_profile(state))[2]
     return np.asarray(jax.jit(jax.vmap(steps))(jnp.asarray(states_before)))
 
 

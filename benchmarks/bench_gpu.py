@@ -1,0 +1,140 @@
+"""jaxbill's GPU drivers beside a numba CUDA kernel of the same method (``numba_cuda_baseline.py``).
+
+Run:  python benchmarks/bench_gpu.py [--orbits 10000 100000 1000000] [--collisions 200] [--rounds 5]
+
+Without a GPU it says so and exits 0 (CI never needs one).
+
+On a GPU, float64, R = 2, I = M ell^2, for the stick in a circle at ell = 1.9
+and 1.0, the lens (ell = 1.5), the stick between walls (h = 3, ell = 1) and
+the stick in an ellipse (a = 2, b = 1.4, ell = 0.5; jaxbill only, the numba
+kernel has no ellipse), for each batch size, in this one process:
+
+- the numba CUDA kernel (one thread per orbit, state in registers): final states;
+- ``jb.run(..., driver="pallas")``: final states and statistics, one Pallas kernel;
+- ``jb.run(..., driver="lanes")``: the XLA state machine, final states;
+- ``jb.run(..., record="states", every=100)`` (the lanes driver: Pallas records no states);
+- ``jb.orbit`` of the batch (every state recorded; lanes driver), at the smallest size only;
+- for scale, ``jb.run(..., driver="lockstep")`` at the smallest size.
+
+Compile times are printed apart (the first call of each); timings are medians
+of ``--rounds`` calls in alternation. Ratios are collisions per second over
+the numba kernel's. Root steps per collision come from the numba kernel,
+which takes exactly jaxbill's steps (``numba_baseline.check_against_jaxbill``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import jax
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def gpu_present() -> bool:
+    try:
+        return any(d.platform == "gpu" for d in jax.devices())
+    except RuntimeError:
+        return False
+
+
+def timed(function, rounds):
+    started = time.perf_counter()
+    function()
+    compile_and_first = time.perf_counter() - started
+    times = []
+    for _ in range(rounds):
+        started = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - started)
+    return compile_and_first, statistics.median(times)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--orbits", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
+    parser.add_argument("--collisions", type=int, default=200)
+    parser.add_argument("--rounds", type=int, default=5)
+    args = parser.parse_args()
+    if not gpu_present():
+        print("bench_gpu: no GPU visible to JAX (jax.devices() = "
+              f"{[d.platform for d in jax.devices()]}); nothing to measure. Run it on a machine with a CUDA GPU.")
+        return 0
+
+    import jaxbill as jb  # noqa: PLC0415 (after the GPU check: importing sets XLA options)
+
+    sys.path.insert(0, HERE)
+    import numba_baseline as baseline  # noqa: PLC0415
+    import numba_cuda_baseline as cuda_baseline  # noqa: PLC0415
+
+    n = args.collisions
+    device = jax.devices()[0]
+    print(f"# jaxbill on {device.device_kind} ({jax.__version__}), float64, {n} collisions per orbit")
+    print()
+    scenes = {
+        "rotor ell=1.9": baseline.circle_params(2.0, 1.9),
+        "rotor ell=1.0": baseline.circle_params(2.0, 1.0),
+        "lens ell=1.5": baseline.circle_params(2.0, 1.5, inertia=float("inf")),
+        "walls h=3 ell=1": baseline.walls_params(3.0, 1.0),
+        "ellipse 2x1.4 ell=0.5": None,
+    }
+    print("| scene | orbits | what | compile + first s | median s | collisions/s | ratio to numba CUDA "
+          "| root steps / collision |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|")
+    for label, params in scenes.items():
+        if params is None:
+            scene = jb.StickInEllipse(2.0, 1.4, 0.5)
+            make_states = _ellipse_states
+        else:
+            scene = baseline.jaxbill_scene(params)
+
+            def make_states(count, params=params):
+                return baseline.random_states(params, count, seed=5)
+
+        for orbits in args.orbits:
+            states = make_states(orbits)
+            collisions = orbits * n
+            rows = []
+            steps = float("nan")
+            peer = None
+            if params is not None:
+                result = []
+                first, median = timed(lambda: result.append(cuda_baseline.run_batch_cuda(params, states, n)), args.rounds)
+                peer = collisions / median
+                steps = result[-1][3].sum() / max(result[-1][2].sum(), 1)
+                rows.append(("numba CUDA kernel", first, median))
+            contenders = {
+                "jb.run final, pallas": lambda: jb.run(scene, states, n, driver="pallas", progress=False),
+                "jb.run final, lanes": lambda: jb.run(scene, states, n, driver="lanes", progress=False),
+                "jb.run states every 100": lambda: jb.run(scene, states, n, record="states", every=100, progress=False),
+            }
+            if orbits == min(args.orbits):
+                contenders["jb.orbit (every state)"] = lambda: jax.block_until_ready(jb.orbit(scene, states, n).state)
+                contenders["jb.run final, lockstep"] = lambda: jb.run(scene, states, n, driver="lockstep", progress=False)
+            for name, function in contenders.items():
+                rows.append((name, *timed(function, args.rounds)))
+            for name, first, median in rows:
+                ratio = f"{collisions / median / peer:.2f}" if peer else "n/a"
+                print(f"| {label} | {orbits} | {name} | {first:.2f} | {median:.4f} | {collisions / median:.3g} "
+                      f"| {ratio} | {steps:.2f} |")
+    return 0
+
+
+def _ellipse_states(count, seed=5):
+    import jaxbill as jb  # noqa: PLC0415
+
+    rng = np.random.default_rng(seed)
+    radius, angle = 0.3 * np.sqrt(rng.uniform(size=count)), rng.uniform(-np.pi, np.pi, count)
+    v = rng.normal(size=(count, 2))
+    states = np.stack([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-np.pi, np.pi, count),
+                       v[:, 0], v[:, 1], rng.normal(size=count)], axis=1)
+    return np.asarray(jb.orbit(jb.StickInEllipse(2.0, 1.4, 0.5), states, 2).state[:, -1])
+
+
+if __name__ == "__main__":
+    sys.exit(main())
