@@ -19,6 +19,8 @@ is in the units of the states' velocities.
 * ``draw_spiral_column``: the spiral-column picture in 3D, the column surface
   ``r <= b(theta - alpha)`` swept along ``z = sqrt(I/M) alpha`` and the
   trajectory inside it.
+* ``plot_fli_map``: a map of fast Lyapunov indicators over a grid of starts
+  (``jaxbill.fli_map``), with the axes labels the caller gives.
 """
 
 from __future__ import annotations
@@ -471,4 +473,55 @@ def draw_floor_section_bounds(ax, scene, energy: float = 0.5, spin: float = 0.0,
     ax.plot(theta, -bound, color=color, lw=0.8)
     ax.axvline(0.5 * np.pi, color=color, lw=0.6, ls=":")
     ax.set_xlim(0.0, np.pi)
+    return ax
+
+
+def plot_fli_map(
+    ax,
+    values,
+    extent,
+    *,
+    xlabel: str,
+    ylabel: str,
+    cmap: str = "viridis",
+    vmin: float | None = None,
+    vmax: float | None = None,
+    colorbar: bool = True,
+    colorbar_label: str = "FLI",
+    title: str | None = None,
+):
+    """An FLI map (``jaxbill.fli_map``) as an image, with the axes labels the caller gives.
+
+    Args:
+        ax: a 2D ``Axes``.
+        values: ``(ny, nx)`` FLI values, ``values[i, j]`` at the ``i``-th ``y``
+            and ``j``-th ``x`` of the grid (``np.meshgrid(x, y)``'s layout, the
+            default ``indexing="xy"``), ``y`` increasing upwards. NaN pixels
+            (invalid starts) are left blank.
+        extent: ``(x_min, x_max, y_min, y_max)``, the grid's range in the
+            section coordinates the labels name (pixel edges, as ``imshow``).
+        xlabel, ylabel: the axes labels (the coordinates the grid was built
+            in; the map itself does not know them).
+        cmap, vmin, vmax: colours; by default the finite values' range.
+        colorbar: add a colour bar labelled ``colorbar_label``.
+        title: optional title.
+
+    Returns:
+        ``ax``. Regular orbits (``FLI ~ log n``) come out dark, chaotic ones
+        (``FLI ~ lambda n``) bright; an Arnold web shows as bright lines.
+    """
+    image = _np(values)
+    if image.ndim != 2:
+        raise ValueError(f"values must be a 2D map (ny, nx); got shape {image.shape}")
+    extent = tuple(float(e) for e in extent)
+    if len(extent) != 4:
+        raise ValueError(f"extent must be (x_min, x_max, y_min, y_max); got {extent}")
+    shown = ax.imshow(np.ma.masked_invalid(image), origin="lower", extent=extent, aspect="auto",
+                      cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title is not None:
+        ax.set_title(title)
+    if colorbar:
+        ax.figure.colorbar(shown, ax=ax, label=colorbar_label)
     return ax
