@@ -6,8 +6,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from . import _lanes as lanes
+from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from ._step import advance, components
 from ._validation import (
     check_orbit_length,
@@ -175,10 +175,13 @@ def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "lockst
         out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
         return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
     plan = lanes.Plan("states", every=1, rows=n)
-    _, (t, contact, states) = lanes.run_blocks(plan, chunk)(scene, padded, lanes.fresh_carry(scene, padded), 0, n)
+    blocks = lanes.run_blocks(plan, chunk if jax.default_backend() == "cpu" else None)
+    _, (t, contact, states) = blocks(scene, padded, lanes.fresh_carry(scene, padded), 0, n)
     invalid = ~jax.vmap(scene.is_valid)(padded)
-    t, contact, states = (jnp.where(invalid.reshape(-1, *([1] * (a.ndim - 1))), jnp.nan if a.dtype == jnp.float64 else 0, a)
-                          for a in (t, contact, states))
+    t, contact, states = (
+        jnp.where(invalid.reshape(-1, *([1] * (a.ndim - 1))), jnp.nan if a.dtype == jnp.float64 else 0, a)
+        for a in (t, contact, states)
+    )
     contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
     return Orbit(t=t[:batch], contact=contact[:batch], state=states[:batch])
 
@@ -230,7 +233,7 @@ def orbit(scene: Scene, state0: jax.Array, n: int, *, driver: str | None = None)
     _check_eagerly(scene, state0)
     concrete = is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene))
     if concrete and jnp.ndim(state0) == 2 and jax.process_count() == 1:
-        from ._sharding import orbit_sharded  # noqa: PLC0415 (_sharding builds on this module)
+        from ._sharding import orbit_sharded
 
         return orbit_sharded(scene, state0, n, driver=driver)
     chosen = lanes.choose_driver(jax.devices()[0].platform, driver, record="states")

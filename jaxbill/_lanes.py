@@ -200,10 +200,18 @@ def fresh_carry(scene, states0: jax.Array) -> Carry:
     )
 
 
-def run_blocks(plan: Plan, width: int):
-    """``run_block`` for a batch whose size is a multiple of ``width``: blocks of ``width`` lanes, one after another."""
+def run_blocks(plan: Plan, width: int | None):
+    """``run_block`` for a batch whose size is a multiple of ``width``: blocks of ``width`` lanes, one after another.
+
+    ``width = None``: the whole batch in one block, as on a GPU, which needs
+    every orbit at once to fill its threads (on a CPU, blocks of
+    ``scene.batch_chunk`` lanes keep a block's working set in cache).
+    """
 
     def run(scene, states0, carry, start, steps):
+        if width is None:
+            return run_block(plan, scene, states0, carry, start, steps)
+
         def as_blocks(a):
             return a.reshape(a.shape[0] // width, width, *a.shape[1:])
 

@@ -31,8 +31,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh
 
+from . import _lanes as lanes
 from . import _run_guard
 from ._collision import _check_eagerly, _poison_if, step_function
+from ._pallas import pallas_final
 from ._run_files import (
     CHECKPOINT_NAME,
     SECTION_RECORD_NAMES,
@@ -43,8 +45,6 @@ from ._run_files import (
     scene_parameters,
     scene_signature,
 )
-from . import _lanes as lanes
-from ._pallas import pallas_final
 from ._sharding import host_rows, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
 from ._validation import check_count
 
@@ -281,7 +281,8 @@ def _lanes_chunk(plan: _Plan, width: int):
 
 def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
     """The chunk of a batch run by the lane state machine: in an XLA loop (``jaxbill._lanes``) or,
-    for ``record="final"``, in a Pallas kernel (``jaxbill._pallas``)."""
+    for ``record="final"``, in a Pallas kernel (``jaxbill._pallas``). ``interpret``: on a CPU
+    (the kernel in Pallas's interpreter; the XLA loop in blocks of ``width`` lanes)."""
     section = plan.section
     machine_plan = lanes.Plan(
         plan.record, plan.every, plan.rows,
@@ -293,7 +294,8 @@ def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
         if driver == "pallas":
             new_carry, records = pallas_final(scene, states0, lanes.Carry(*carry), steps, interpret=interpret), ()
         else:
-            new_carry, records = lanes.run_blocks(machine_plan, width)(scene, states0, lanes.Carry(*carry), start, steps)
+            blocks = lanes.run_blocks(machine_plan, width if interpret else None)
+            new_carry, records = blocks(scene, states0, lanes.Carry(*carry), start, steps)
         invalid = ~jax.vmap(scene.is_valid)(states0)
         if plan.record == "states":
             records = tuple(_poison_rows(invalid, r) for r in records)
@@ -587,7 +589,9 @@ class _Records:
         paths = [self.out_dir / f"{name}.npy" for name, _, _ in specs]
         what = "record='states' (" + ", ".join(path.name for path in paths) + ") with its checkpoint"
         try:
-            self.states = [open_record(path, dtype, shape, create=fresh) for path, (_, dtype, shape) in zip(paths, specs)]
+            self.states = [
+                open_record(path, dtype, shape, create=fresh) for path, (_, dtype, shape) in zip(paths, specs)
+            ]
             # The files are sparse so far: count the blocks they still lack.
             needed = sum(_run_guard.unallocated_bytes(path) for path in paths) + checkpoint_bytes
             _run_guard.check_space(self.out_dir, needed, what)
