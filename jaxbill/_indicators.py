@@ -60,12 +60,14 @@ logarithms of the stretch factors are summed, so ``L`` is exact even where
 
 from __future__ import annotations
 
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._collision import _check_eagerly, _poison_if
+from . import _pallas as pallas
 from ._scene import Scene
 from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from ._validation import (
@@ -362,7 +364,10 @@ fli.__doc__ = fli.__doc__.replace("    {args}\n", _ARGS_DOC)
 megno.__doc__ = megno.__doc__.replace("    {args}\n", _ARGS_DOC)
 
 
-def fli_map(scene: Scene, states_grid, n: int, *, per: str = "collision", tangent0=None, chunk: int = MAP_CHUNK):
+def fli_map(
+    scene: Scene, states_grid, n: int, *, per: str = "collision", tangent0=None, chunk: int = MAP_CHUNK,
+    driver: str | None = None,
+):
     """The FLI after ``n`` collisions over a grid of starts: an array of the grid's shape.
 
     Args:
@@ -377,6 +382,13 @@ def fli_map(scene: Scene, states_grid, n: int, *, per: str = "collision", tangen
             ``fli`` (default: the generic direction orthogonal to the flow).
         chunk: pixels per compiled batch (one program serves every chunk;
             memory grows with it, not with the grid).
+        driver: ``"autodiff"``: ``fli``'s scan of autodiff tangent maps;
+            ``"pallas"``: the tangent vector carried inside the Pallas kernel
+            of the lane state machine (``jaxbill._pallas.pallas_fli``; the
+            same values to rounding; ``per="collision"`` and scenes whose
+            dynamical directions are state coordinates). ``None``: ``"pallas"``
+            on a GPU where it applies, else ``"autodiff"``. On a CPU the
+            kernel runs in Pallas's interpreter (slow: for tests).
 
     Returns:
         numpy float64 array of shape ``states_grid.shape[:-1]``: the FLI
@@ -385,6 +397,14 @@ def fli_map(scene: Scene, states_grid, n: int, *, per: str = "collision", tangen
     """
     if per not in PER:
         raise ValueError(f"per must be one of {PER}; got {per!r}")
+    kernel_applies = per == "collision" and hasattr(scene, "dynamical_indices")
+    if driver is None:
+        driver = "pallas" if kernel_applies and jax.default_backend() != "cpu" else "autodiff"
+    if driver not in ("autodiff", "pallas"):
+        raise ValueError(f"driver must be 'autodiff', 'pallas' or None; got {driver!r}")
+    if driver == "pallas" and not kernel_applies:
+        raise ValueError("driver='pallas' needs per='collision' and a scene whose dynamical directions are "
+                         f"state coordinates ({type(scene).__name__} with per={per!r}: use driver='autodiff')")
     n = check_count("n", n, 1, "number of collisions")
     chunk = check_count("chunk", chunk, 1, "pixels per compiled batch")
     require_x64()
@@ -406,11 +426,27 @@ def fli_map(scene: Scene, states_grid, n: int, *, per: str = "collision", tangen
     if len(starts) == 0:
         return out.reshape(shape)
     size = min(chunk, len(starts))
+    if driver == "pallas":
+        size = -(-size // pallas.BLOCK) * pallas.BLOCK  # whole blocks of the kernel
     for begin in range(0, len(starts), size):
         block = starts[begin : begin + size]
         count = len(block)
         # Pad the last chunk with copies of a valid start: one compiled shape.
         padded = np.concatenate([block, np.repeat(block[:1], size - count, axis=0)])
-        values = fli(scene, padded, n, per=per, tangent0=tangent0, n_history=1).value
+        if driver == "pallas":
+            values = _kernel_fli(scene, jnp.asarray(padded), None if tangent0 is None else jnp.asarray(tangent0), n,
+                                 jax.default_backend() == "cpu")
+        else:
+            values = fli(scene, padded, n, per=per, tangent0=tangent0, n_history=1).value
         out[np.flatnonzero(valid)[begin : begin + count]] = np.asarray(values)[:count]
     return out.reshape(shape)
+
+
+@eqx.filter_jit
+def _kernel_fli(scene, states, tangent0, n, interpret):
+    """``fli``'s value (``per="collision"``) from the same starting vectors, by the Pallas kernel."""
+
+    def starting_vector(state):
+        return to_state_space(scene, state, _initial_vector(scene, state, tangent0, "collision")[:, None])[:, 0]
+
+    return pallas.pallas_fli(scene, states, jax.vmap(starting_vector)(states), n, interpret=interpret)[0]

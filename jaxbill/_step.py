@@ -43,7 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._first_root import RootBounds, first_root, root_step, search_start, select
+from ._first_root import first_root, root_step, search_start, select
 from ._scene import NO_CONTACT
 
 # Static bound on root-search steps per collision. Typical collisions take a
@@ -87,7 +87,8 @@ def searched_contact_time(scene, state: tuple):
     return t, index, ok
 
 
-@searched_contact_time.defjvp
+# the integer outputs' tangents are float0 zeros, which jax's annotation of defjvp leaves out
+@searched_contact_time.defjvp  # pyright: ignore[reportArgumentType]
 def _searched_contact_time_jvp(primals, tangents):
     # Implicit differentiation of g_k(t*; scene, state) = 0: the derivative of
     # the root comes from the gap at the root, never from the search iterations.
@@ -144,7 +145,7 @@ class Lane(NamedTuple):
         bounds: the flight's ``RootBounds`` (``None`` for a closed form).
     """
 
-    state: jax.Array
+    state: tuple
     t: jax.Array
     index: jax.Array
     found: jax.Array
@@ -187,6 +188,36 @@ def end_flight(scene, lane: Lane, constants: Any):
     t = lane.t
     kicked, contact = scene.collide_at(lane.state, jnp.where(jnp.isfinite(t), t, 0.0), lane.index, constants)
     return finish_step(lane.state, kicked, t, contact, lane.found)
+
+
+def end_flight_tangent(scene, lane: Lane, constants: Any, tangent: tuple) -> tuple:
+    """The collision map's tangent (``jb.tangent_map``, ``flow=False``) applied to ``tangent``, at a lane
+    whose contact was found; components in and out.
+
+    The contact time's derivative is implicit for a searched root
+    (``dt = -(grad g . w) / g'`` at the root, as ``searched_contact_time``'s
+    rule) and direct for a closed form; then the flight to the contact and
+    the impulse are differentiated along ``(w, dt)``. Pure elementwise work,
+    so it runs inside the Pallas kernel too.
+    """
+    state, t, index = lane.state, lane.t, lane.index
+    reached = jnp.isfinite(t)
+    t_safe = jnp.where(reached, t, 0.0)
+    if scene.searches_for_roots:
+
+        def gap_at_root(s):
+            return select(scene.gaps_along_flight(scene.root_search(s)[0], t_safe)[0], index)
+
+        _, gap_tangent = jax.jvp(gap_at_root, (state,), (tangent,))
+        slope = select(scene.gaps_along_flight(scene.root_search(state)[0], t_safe)[1], index)
+        t_tangent = jnp.where(reached & (slope != 0.0), -gap_tangent / jnp.where(slope != 0.0, slope, 1.0), 0.0)
+    else:
+        _, t_tangent = jax.jvp(lambda s: scene.closed_form_contact(s, constants)[0], (state,), (tangent,))
+        t_tangent = jnp.where(reached, t_tangent, 0.0)
+    _, new_tangent = jax.jvp(
+        lambda s, tt: scene.collide_at(s, tt, index, constants)[0], (state, t_safe), (tangent, t_tangent)
+    )
+    return where(reached, new_tangent, tangent)
 
 
 def tree_where(condition, if_true, if_false):

@@ -8,16 +8,15 @@ machine must handle what a batch throws at it: poisoned lanes, padding, lanes
 that run out of steps, ``n = 0``, records every ``k`` collisions and sections.
 """
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import jax
-import jax.numpy as jnp
-
 import jaxbill as jb
+from helpers import random_states
 from jaxbill import _collision, _lanes, _step
 from jaxbill._first_root import first_root
-from helpers import random_states
 
 INF = float("inf")
 N = 40
@@ -167,8 +166,9 @@ def test_section_records_with_the_lane_driver():
     orbit = jb.orbit(scene, states, N, driver="lanes")
     for i in range(states.shape[0]):
         kept = np.asarray(orbit.contact[i]) == 1
-        np.testing.assert_array_equal(lanes_run.section.point[lanes_run.section.orbit == i], np.asarray(orbit.state[i])[kept])
-        np.testing.assert_array_equal(lanes_run.section.collision[lanes_run.section.orbit == i], np.flatnonzero(kept) + 1)
+        of_orbit = lanes_run.section.orbit == i
+        np.testing.assert_array_equal(lanes_run.section.point[of_orbit], np.asarray(orbit.state[i])[kept])
+        np.testing.assert_array_equal(lanes_run.section.collision[of_orbit], np.flatnonzero(kept) + 1)
 
 
 def _hits_p1(scene, state, contact):
@@ -268,3 +268,46 @@ def test_pallas_kernel_lowers_for_cuda_without_a_gpu(name):
     lowered = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 10)).trace(
         states, _lanes.fresh_carry(scene, states)).lower(lowering_platforms=("cuda",))
     assert "triton" in lowered.as_text().lower() or "__gpu$xla$gpu$triton" in lowered.as_text()
+
+
+def _fli_starting_vectors(scene, states):
+    from jaxbill._indicators import _initial_vector
+    from jaxbill._tangent import to_state_space
+
+    return jax.vmap(lambda s: to_state_space(scene, s, _initial_vector(scene, s, None, "collision")[:, None])[:, 0])(
+        jnp.asarray(states))
+
+
+@pytest.mark.parametrize("name", ["rotor 1.0", "lens", "walls 2D", "ellipse", "ellipse point"])
+def test_pallas_kernel_carries_the_tangent_as_jb_fli(name):
+    """The FLI of the tangent vector carried inside the kernel equals ``jb.fli`` (autodiff
+    tangent maps of the collision map) from the same starting vectors."""
+    scene = scenes()[name]
+    states = jnp.asarray(start_states(scene, 32, seed=5))
+    n = 12
+    fli, log_norm, final = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, n, interpret=True))(
+        states, _fli_starting_vectors(scene, states))
+    expected = jb.fli(scene, states, n)
+    np.testing.assert_allclose(np.asarray(fli), np.asarray(expected.value), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(log_norm), np.asarray(expected.log_norm), rtol=1e-9, atol=1e-9)
+    assert float(jnp.max(fli)) > 1.0  # the vectors really stretched
+
+
+def test_pallas_tangent_kernel_lowers_for_cuda():
+    scene = jb.StickInCircle(R=2.0, ell=1.9)
+    states = jnp.zeros((64, 6))
+    lowered = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, 10)).trace(states, states).lower(
+        lowering_platforms=("cuda",))
+    assert "triton" in lowered.as_text().lower()
+
+
+def test_fli_map_through_the_kernel_equals_the_autodiff_map():
+    scene = jb.StickInCircle(R=2.0, ell=1.5, inertia=INF)
+    grid = start_states(scene, 40, seed=9).reshape(5, 8, 6)
+    grid[0, 0, 0] = np.nan  # an unreachable pixel stays NaN on both paths
+    kernel = jb.fli_map(scene, grid, 15, driver="pallas")
+    autodiff = jb.fli_map(scene, grid, 15, driver="autodiff")
+    assert kernel.shape == (5, 8) and np.isnan(kernel[0, 0]) and np.isnan(autodiff[0, 0])
+    np.testing.assert_allclose(kernel, autodiff, rtol=1e-9, atol=1e-9)
+    with pytest.raises(ValueError, match="driver"):
+        jb.fli_map(scene, grid, 15, per="time", driver="pallas")
