@@ -10,7 +10,6 @@ fraction whose exponent exceeds a threshold, an estimate of the fraction of the
 
 from __future__ import annotations
 
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -18,7 +17,6 @@ import numpy as np
 
 from ._collision import _check_eagerly, _poison_if
 from ._scene import Scene
-from ._stick_in_circle import StickInCircle
 from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from ._validation import check_count
 
@@ -115,7 +113,7 @@ def chaotic_fraction(exponents, weights=None, threshold: float | None = None, n:
 
 
 def sample_energy_shell(
-    scene: StickInCircle,
+    scene,
     size: int,
     *,
     energy: float = 0.5,
@@ -123,7 +121,11 @@ def sample_energy_shell(
     seed: int = 0,
     margin: float = 1e-9,
 ):
-    """Initial conditions with the Liouville measure on a shell of fixed ``E`` (and ``L``), for a ``StickInCircle``.
+    """Initial conditions with the Liouville measure on a shell of fixed ``E`` (and ``L``).
+
+    The scene draws them (``sample_states``, the ``SamplesStates`` protocol);
+    this loops until ``size`` are kept. What follows is ``StickInCircle``'s
+    sampler (``StickInEllipse``'s: ``table_shell_candidates``, energy only).
 
     Configurations ``(x, y, alpha)`` are drawn uniformly among those with both
     ends inside the circle (by ``margin``, relative to ``R``). Velocities, in the
@@ -145,62 +147,102 @@ def sample_energy_shell(
         ``(states, weights)``: numpy arrays of shapes ``(size, 6)`` and ``(size,)``.
         Weighted averages over them are microcanonical averages.
     """
-    if not isinstance(scene, StickInCircle):
+    draw = getattr(scene, "sample_states", None)
+    if draw is None:
         raise TypeError(
-            f"sample_energy_shell draws states inside a circle (StickInCircle); got {type(scene).__name__}"
+            f"scene: {type(scene).__name__} cannot draw states on an energy shell (no sample_states: "
+            "the SamplesStates protocol of jaxbill._scene)"
         )
-    R = float(scene.R)
-    ell = float(scene.ell)
-    mass = float(scene.mass)
     rng = np.random.default_rng(seed)
     states, weights = [], []
-    pin_l = scene.kind == "rotor" and angular_momentum is not None
-    if angular_momentum is not None and scene.kind != "rotor":
-        raise ValueError("angular_momentum is conserved only for a spinning stick (finite inertia, ell > 0)")
-    inertia = float(scene.inertia) if scene.kind == "rotor" else 0.0
     count = 0
     while count < size:
         m = 2 * (size - count) + 16
-        c = rng.uniform(-R, R, (m, 2))
-        alpha = rng.uniform(-np.pi, np.pi, m)
-        u = np.stack([np.cos(alpha), np.sin(alpha)], axis=1)
-        inside = np.maximum(np.linalg.norm(c + ell * u, axis=1), np.linalg.norm(c - ell * u, axis=1)) < R * (
-            1 - margin
-        )
-        c, alpha = c[inside], alpha[inside]
-        k = len(alpha)
-        if scene.kind == "rotor":
-            if pin_l:
-                b = np.stack([-np.sqrt(mass) * c[:, 1], np.sqrt(mass) * c[:, 0], np.full(k, np.sqrt(inertia))], 1)
-                bnorm = np.linalg.norm(b, axis=1)
-                d = angular_momentum / bnorm
-                reach = 2 * energy - d * d
-                keep = reach > 0
-                b, bnorm, d, reach = b[keep], bnorm[keep], d[keep], reach[keep]
-                c, alpha = c[keep], alpha[keep]
-                bhat = b / bnorm[:, None]
-                # Orthonormal basis of the plane perpendicular to bhat.
-                e1 = np.cross(bhat, np.array([0.0, 0.0, 1.0]))
-                e1 /= np.linalg.norm(e1, axis=1)[:, None]
-                e2 = np.cross(bhat, e1)
-                psi = rng.uniform(-np.pi, np.pi, len(d))
-                r = np.sqrt(reach)
-                pi = d[:, None] * bhat + r[:, None] * (np.cos(psi)[:, None] * e1 + np.sin(psi)[:, None] * e2)
-                w = 1.0 / bnorm
-            else:
-                pi = rng.standard_normal((k, 3))
-                pi *= np.sqrt(2 * energy) / np.linalg.norm(pi, axis=1)[:, None]
-                w = np.ones(k)
-            v = pi[:, 0:2] / np.sqrt(mass)
-            omega = pi[:, 2] / np.sqrt(inertia)
-        else:
-            theta = rng.uniform(-np.pi, np.pi, k)
-            v = np.sqrt(2 * energy / mass) * np.stack([np.cos(theta), np.sin(theta)], 1)
-            omega = np.zeros(k)
-            w = np.ones(k)
-        states.append(np.column_stack([c, alpha, v, omega]))
+        batch, w = draw(rng, m, energy, angular_momentum=angular_momentum, margin=margin)
+        states.append(batch)
         weights.append(w)
         count += len(w)
     states = np.concatenate(states)[:size]
     weights = np.concatenate(weights)[:size]
     return states, weights / weights.mean()
+
+
+def circle_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=None, margin: float = 1e-9):
+    """``StickInCircle.sample_states``: ``m`` tries, the ``(states (k, 6), weights (k,))`` kept (see
+    ``sample_energy_shell``); configurations uniform in the square ``[-R, R]^2 x [-pi, pi)``, kept when both
+    ends are inside by ``margin R``."""
+    R = float(scene.R)
+    ell = float(scene.ell)
+    mass = float(scene.mass)
+    pin_l = scene.kind == "rotor" and angular_momentum is not None
+    if angular_momentum is not None and scene.kind != "rotor":
+        raise ValueError("angular_momentum is conserved only for a spinning stick (finite inertia, ell > 0)")
+    inertia = float(scene.inertia) if scene.kind == "rotor" else 0.0
+    c = rng.uniform(-R, R, (m, 2))
+    alpha = rng.uniform(-np.pi, np.pi, m)
+    u = np.stack([np.cos(alpha), np.sin(alpha)], axis=1)
+    inside = np.maximum(np.linalg.norm(c + ell * u, axis=1), np.linalg.norm(c - ell * u, axis=1)) < R * (
+        1 - margin
+    )
+    c, alpha = c[inside], alpha[inside]
+    k = len(alpha)
+    if scene.kind == "rotor":
+        if pin_l:
+            b = np.stack([-np.sqrt(mass) * c[:, 1], np.sqrt(mass) * c[:, 0], np.full(k, np.sqrt(inertia))], 1)
+            bnorm = np.linalg.norm(b, axis=1)
+            d = angular_momentum / bnorm
+            reach = 2 * energy - d * d
+            keep = reach > 0
+            b, bnorm, d, reach = b[keep], bnorm[keep], d[keep], reach[keep]
+            c, alpha = c[keep], alpha[keep]
+            bhat = b / bnorm[:, None]
+            # Orthonormal basis of the plane perpendicular to bhat.
+            e1 = np.cross(bhat, np.array([0.0, 0.0, 1.0]))
+            e1 /= np.linalg.norm(e1, axis=1)[:, None]
+            e2 = np.cross(bhat, e1)
+            psi = rng.uniform(-np.pi, np.pi, len(d))
+            r = np.sqrt(reach)
+            pi = d[:, None] * bhat + r[:, None] * (np.cos(psi)[:, None] * e1 + np.sin(psi)[:, None] * e2)
+            w = 1.0 / bnorm
+        else:
+            pi = rng.standard_normal((k, 3))
+            pi *= np.sqrt(2 * energy) / np.linalg.norm(pi, axis=1)[:, None]
+            w = np.ones(k)
+        v = pi[:, 0:2] / np.sqrt(mass)
+        omega = pi[:, 2] / np.sqrt(inertia)
+    else:
+        theta = rng.uniform(-np.pi, np.pi, k)
+        v = np.sqrt(2 * energy / mass) * np.stack([np.cos(theta), np.sin(theta)], 1)
+        omega = np.zeros(k)
+        w = np.ones(k)
+    return np.column_stack([c, alpha, v, omega]), w
+
+
+def table_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=None, margin: float = 1e-9,
+                           *, box: tuple[float, float]):
+    """Energy-shell tries for a planar stick ``[x, y, alpha, vx, vy, omega]`` in a fixed table (``StickInEllipse``).
+
+    Configurations uniform in ``[-box[0], box[0]] x [-box[1], box[1]] x [-pi, pi)``, kept where both gaps
+    exceed ``margin * gap_scale``; velocities uniform on the sphere ``|(sqrt(M) v, sqrt(I) omega)|^2 = 2E``
+    (on the circle ``sqrt(M)|v| = sqrt(2E)``, ``omega = 0``, for a stick that never turns or a point).
+    Returns ``(states (k, 6), weights (k,))``, weights 1: nothing but ``E`` is pinned.
+    """
+    if angular_momentum is not None:
+        raise ValueError(f"angular_momentum: {type(scene).__name__} conserves none; leave it None")
+    mass = float(scene.mass)
+    c = rng.uniform(-1.0, 1.0, (m, 2)) * np.asarray(box, dtype=np.float64)
+    alpha = rng.uniform(-np.pi, np.pi, m)
+    trial = np.column_stack([c, alpha, np.zeros((m, 3))])
+    inside = np.all(np.asarray(scene.gaps(trial)) > margin * float(scene.gap_scale), axis=1)
+    c, alpha = c[inside], alpha[inside]
+    k = len(alpha)
+    turning = np.isfinite(float(scene.inertia)) and float(scene.ell) > 0
+    if turning:
+        pi = rng.standard_normal((k, 3))
+        pi *= np.sqrt(2 * energy) / np.linalg.norm(pi, axis=1)[:, None]
+        v, omega = pi[:, 0:2] / np.sqrt(mass), pi[:, 2] / np.sqrt(float(scene.inertia))
+    else:
+        theta = rng.uniform(-np.pi, np.pi, k)
+        v = np.sqrt(2 * energy / mass) * np.stack([np.cos(theta), np.sin(theta)], 1)
+        omega = np.zeros(k)
+    return np.column_stack([c, alpha, v, omega]), np.ones(k)

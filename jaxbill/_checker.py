@@ -7,10 +7,14 @@ metric is Euclidean, so the elastic impulse is a specular reflection. Between
 collisions the point flies straight; here that flight is *integrated* as the
 ODE ``d(x, y, z)/dt = v, dv/dt = 0`` with a diffrax solver, not evaluated in
 closed form. The wall is the column ``W_k >= 0`` for both ends ``k = +1, -1``,
+where ``W_k`` is the scene's own gap of end ``k`` as a function of position
+(``ColumnFlight``, which the scene hands out as its ``checker_flight``):
 
-    W_k(x, y, z) = R^2 - |c + k ell u(z / sqrt(I/M))|^2,
+    StickInCircle:   W_k(x, y, z) = R^2 - |P_k|^2,
+    StickInEllipse:  W_k(x, y, z) = a b - P_k^T D P_k,   D = diag(b/a, a/b),
 
-one smooth sheet per end (their intersection is the column's crease). A
+with ``P_k = c + k ell u(z / sqrt(I/M))``: one smooth sheet per end (their
+intersection is the column's crease). A
 ``diffrax.Event`` on ``min(W_+, W_-)`` with an ``optimistix.Newton`` root
 finder stops the solve at the wall; the velocity is reflected about
 ``N = grad W_k`` (``jax.grad``), and a new solve starts from there.
@@ -19,13 +23,15 @@ Nothing here uses jaxbill's collision times or impulse law. What diffrax cannot
 promise is checked after every solve, step by step: an even number of sign
 changes of ``W_k`` inside one solver step is invisible to the event, and so is a
 root that is not the first one in the step. Along a straight flight
-``|W_k''| <= K = 2 (|v| + ell |omega|)^2 + 2 (|c|_max + ell) ell omega^2``; from
-``K`` and the values and slopes of ``W_k`` at each step's ends a certified lower
-bound of ``W_k`` over the step follows. A step whose bound is not positive
-(except at the event itself) is *flagged*: the checker stops there and says so
-instead of returning a sequence that might have skipped a collision. The
-default ``dtmax`` keeps such flags rare: it is chosen so that a hidden
-excursion could be at most ``graze_tol R^2`` deep.
+``|W_k''| <= K = 2 d_max ((|v| + ell |omega|)^2 + (|c|_max + ell) ell omega^2)``
+(``d_max`` bounds the table's ``D``: 1 for the circle, ``max(a, b)/min(a, b)``
+for the ellipse); from ``K`` and the values and slopes of ``W_k`` at each step's
+ends a certified lower bound of ``W_k`` over the step follows. A step whose
+bound is not positive (except at the event itself) is *flagged*: the checker
+stops there and says so instead of returning a sequence that might have
+skipped a collision. The default ``dtmax`` keeps such flags rare: it is chosen
+so that a hidden excursion could be at most ``graze_tol`` times the gap's unit
+(``R^2``, ``ab``) deep.
 
 Accuracy. The flight is summed step by step, so the checker's own error grows
 with the number of steps and with the angle turned: about ``ulp(alpha)`` per
@@ -41,6 +47,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from typing import Any
 
 import diffrax
 import equinox as eqx
@@ -51,10 +58,9 @@ import optimistix as optx
 
 from ._collision import collide as _collide
 from ._collision import orbit as _orbit
-from ._stick_in_circle import StickInCircle
 from ._validation import MAX_STORED_COUNT, check_count
 
-__all__ = ["check", "CheckResult", "CheckReport", "CheckFlag"]
+__all__ = ["check", "CheckResult", "CheckReport", "CheckFlag", "ColumnFlight"]
 
 _FLAG_NAMES = {
     1: "graze",  # a wall not certified positive inside a step: a collision may hide there
@@ -65,33 +71,73 @@ _FLAG_NAMES = {
 }
 
 
-class _Column(eqx.Module):
-    """The spiral column of one scene: wall functions in 3D coordinates."""
+class ColumnFlight(eqx.Module):
+    """The straight flight of a planar stick's point ``(x, y, z = scale alpha)`` in the column its gaps bound.
 
-    R: jax.Array
-    ell: jax.Array
-    scale: jax.Array  # sqrt(I/M) for the rotor, 1 for lens and circle (z = alpha)
-    frozen: bool = eqx.field(static=True)  # lens: infinitely heavy, z never changes
-    circle: bool = eqx.field(static=True)  # ell = 0: both sheets coincide, no crease
+    What a scene whose state is ``[x, y, alpha, vx, vy, omega]`` and whose
+    table is fixed and convex (``StickInCircle``, ``StickInEllipse``) hands the
+    checker (``HasCheckerFlight``): in ``(x, y, z)`` with ``z = sqrt(I/M) alpha``
+    the metric is Euclidean, so a collision is a specular reflection about the
+    gradient of the touching end's gap, and between collisions the point flies
+    straight. The walls are the scene's own gaps as functions of position
+    (``scene.gaps`` at zero velocity): geometry only, never its collision
+    times or impulse law.
+
+    Attributes:
+        scene: the scene (one, unbatched); only ``gaps`` and ``gap_scale`` are used.
+        scale: ``sqrt(I/M)`` for a turning stick, 1 otherwise (``z = alpha``), length.
+        length: the unit of length of the comparison (``R``; ``max(a, b)``).
+        reach: a bound on ``|c|``, the centre's distance from the origin, inside the table.
+        hessian_bound: ``d_max``: the gaps' Hessian in the contact point is
+            ``-2 D`` with ``|D| <= d_max`` (1 for the circle).
+        frozen: the stick never turns (infinite inertia): the impulse's z part is dropped.
+        single_sheet: both ends are one point (``ell = 0``): no crease, no corner.
+    """
+
+    scene: Any
+    scale: jax.Array
+    length: jax.Array
+    reach: jax.Array
+    hessian_bound: jax.Array
+    frozen: bool = eqx.field(static=True)
+    single_sheet: bool = eqx.field(static=True)
+
+    @property
+    def ell(self) -> jax.Array:
+        return self.scene.ell
+
+    @property
+    def gap_unit(self) -> jax.Array:
+        return self.scene.gap_scale
+
+    def _state(self, pos: jax.Array) -> jax.Array:
+        zero = jnp.zeros((), pos.dtype)
+        return jnp.stack([pos[0], pos[1], pos[2] / self.scale, zero, zero, zero])
 
     def wall(self, k: float, pos: jax.Array) -> jax.Array:
-        alpha = pos[2] / self.scale
-        end = pos[0:2] + k * self.ell * jnp.stack([jnp.cos(alpha), jnp.sin(alpha)])
-        return self.R**2 - end @ end
+        """The gap of end ``k`` (+1: P1, -1: P2) at position ``pos = (x, y, z)``."""
+        return self.walls(pos)[0 if k > 0 else 1]
 
     def walls(self, pos: jax.Array) -> jax.Array:
-        return jnp.stack([self.wall(1.0, pos), self.wall(-1.0, pos)])
+        return self.scene.gaps(self._state(pos))
 
     def walls_and_slopes(self, y: jax.Array):
         """``W_k`` and ``dW_k/dt`` along the flight (a JVP along the velocity)."""
         return jax.jvp(self.walls, (y[0:3],), (y[3:6],))
 
     def curvature_bound(self, y0: jax.Array, y1: jax.Array) -> jax.Array:
-        """Bound on ``|W_k''|`` over the straight flight from ``y0`` to ``y1``."""
+        """Bound on ``|W_k''|`` over the straight flight from ``y0`` to ``y1``.
+
+        ``W = g(P)``, ``P = c + k ell u``: ``W'' = P'^T Hess g P' + grad g . P''``
+        with ``|Hess g| <= 2 d_max``, ``|grad g| = 2 |D P| <= 2 d_max |P|``,
+        ``|P'| <= |v| + ell |omega|`` and ``|P''| = ell omega^2``.
+        """
         speed = jnp.linalg.norm(y0[3:5])
         spin = jnp.abs(y0[5] / self.scale)
         centre = jnp.maximum(jnp.linalg.norm(y0[0:2]), jnp.linalg.norm(y1[0:2]))
-        return 2.0 * (speed + self.ell * spin) ** 2 + 2.0 * (centre + self.ell) * self.ell * spin**2
+        return 2.0 * self.hessian_bound * (
+            (speed + self.ell * spin) ** 2 + (centre + self.ell) * self.ell * spin**2
+        )
 
     def reflect(self, k_index: jax.Array, y: jax.Array) -> jax.Array:
         """Specular reflection of the velocity about ``grad W_k`` (Euclidean metric)."""
@@ -105,6 +151,10 @@ class _Column(eqx.Module):
         v = y[3:6]
         v = v - 2.0 * (v @ normal) / (normal @ normal) * normal
         return jnp.concatenate([y[0:3], v])
+
+    def check(self, scene, state0, n: int, **options) -> CheckResult:
+        """``jb.check`` for this flight (see ``check`` for the options)."""
+        return _check_column(self, scene, state0, n, **options)
 
 
 def _certified_positive(f0, p0, f1, p1, h, K):
@@ -130,7 +180,7 @@ def _vector_field(t, y, args):
 
 
 @eqx.filter_jit
-def _segment(column: _Column, y0, dtmax, solver, rtol, atol, root_tol, max_steps, corner_tol):
+def _segment(column: ColumnFlight, y0, dtmax, solver, rtol, atol, root_tol, max_steps, corner_tol):
     """Integrate from ``y0`` to the next wall event (at most ``max_steps`` steps);
     certify the steps; reflect.
 
@@ -142,7 +192,7 @@ def _segment(column: _Column, y0, dtmax, solver, rtol, atol, root_tol, max_steps
         # At the start one wall is at zero (the end that just bounced), and
         # diffrax only sees a crossing from a positive value: start from +1 so
         # that the *other* end reaching the wall within the first step is seen.
-        value = jnp.min(column.walls(y[0:3])) / column.R**2  # O(1), so root_tol is relative
+        value = jnp.min(column.walls(y[0:3])) / column.gap_unit  # O(1), so root_tol is relative
         return jnp.where(t <= 0.0, 1.0, value)
 
     event = diffrax.Event(
@@ -183,9 +233,9 @@ def _segment(column: _Column, y0, dtmax, solver, rtol, atol, root_tol, max_steps
     is_last = (jnp.arange(ts.shape[0]) == last) & event_ok
     # The wall that just bounced starts at zero to rounding (step 0).
     first = (jnp.arange(ts.shape[0]) == 0)[:, None]
-    f0 = jnp.where(first & (f0 > -corner_tol * column.R**2), jnp.maximum(f0, 0.0), f0)
+    f0 = jnp.where(first & (f0 > -corner_tol * column.gap_unit), jnp.maximum(f0, 0.0), f0)
     # The event itself is a root of the contacting wall: certify up to it only.
-    at_event = is_last[:, None] & ((jnp.arange(2)[None, :] == k_index) | column.circle)
+    at_event = is_last[:, None] & ((jnp.arange(2)[None, :] == k_index) | column.single_sheet)
     f1 = jnp.where(at_event, jnp.maximum(f1, 0.0), f1)
     ok = _certified_positive(f0, p0, f1, p1, (t_end - t_start)[:, None], K[:, None])
     bad = valid[:, None] & ~ok
@@ -196,8 +246,8 @@ def _segment(column: _Column, y0, dtmax, solver, rtol, atol, root_tol, max_steps
     flag = jnp.where((flag == 0) & ~event_ok, 3, flag)
     flag = jnp.where((flag == 0) & (slope_event[k_index] >= 0.0), 4, flag)
     other = w_event[1 - k_index]
-    if not column.circle:
-        flag = jnp.where((flag == 0) & (other <= corner_tol * column.R**2), 5, flag)
+    if not column.single_sheet:
+        flag = jnp.where((flag == 0) & (other <= corner_tol * column.gap_unit), 5, flag)
     flag_time = jnp.where(flag == 1, t_start[bad_step], t_event)
 
     # A chunk that ran out of steps without an event hands back its last state unreflected.
@@ -365,7 +415,7 @@ def _first(mask):
 # the checker
 # ---------------------------------------------------------------------------
 def check(
-    scene: StickInCircle,
+    scene,
     state0,
     n: int,
     *,
@@ -384,13 +434,15 @@ def check(
     """Integrate the first ``n`` collisions with diffrax and compare with ``jb.orbit``.
 
     Args:
-        scene: a single (unbatched) ``StickInCircle``: rotor, lens or circle.
-            A ``StickBetweenWalls2D`` or ``3D`` goes to their own checker,
-            ``jaxbill._walls_checker.check_walls`` (the reduced ``(z, psi)``
-            flight with its centrifugal potential; the arguments below that
-            it shares are passed on, the rest keep its defaults, and lengths
-            are in units of ``h``).
-        state0: ``[x, y, alpha, vx, vy, omega]``, shape ``(6,)``.
+        scene: a single (unbatched) scene that answers ``checker_flight``
+            (``jaxbill._scene.HasCheckerFlight``). ``StickInCircle`` and
+            ``StickInEllipse`` give a ``ColumnFlight`` (this module);
+            ``StickBetweenWalls2D``/``3D`` a ``ReducedWallsFlight``
+            (``jaxbill._walls_checker``: the reduced ``(z, psi)`` flight with
+            its centrifugal potential; it takes ``tol``, ``graze_tol``,
+            ``max_steps``, ``corner_tol`` and ``solver``, the rest keep its
+            defaults, and lengths are in units of ``h``).
+        state0: the start, shape ``(S,)`` (``[x, y, alpha, vx, vy, omega]`` for the column flights).
         n: number of collisions.
         tol: scaled tolerance of the comparison (see ``CheckReport``) and of
             the chaos horizon.
@@ -423,6 +475,7 @@ def check(
 
     Raises:
         NotImplementedError: for a batched scene or ``state0``.
+        TypeError: for a scene without ``checker_flight``.
         ValueError: for ``n`` not a positive integer (at most ``2**31 - 1``),
             a complex or non-numeric ``state0``, or an invalid ``state0`` (as
             ``jb.orbit``).
@@ -431,48 +484,53 @@ def check(
     dtype = state0.dtype if hasattr(state0, "dtype") else np.asarray(state0).dtype
     if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
         raise ValueError(f"state0 must be real numbers; got dtype {dtype}")
-    if not isinstance(scene, StickInCircle):
-        # Imported here: the walls checker builds on this module's report types.
-        from ._walls_checker import check_walls
-
-        shared = dict(tol=tol, graze_tol=graze_tol, max_steps=max_steps, corner_tol=corner_tol)
-        if solver is not None:
-            shared["solver"] = solver
-        return check_walls(scene, state0, n, **shared)
-    start = time.perf_counter()
+    flight_of = getattr(scene, "checker_flight", None)
+    if flight_of is None:
+        raise TypeError(
+            f"scene: {type(scene).__name__} gives no checker_flight (the HasCheckerFlight protocol of "
+            "jaxbill._scene): jb.check cannot integrate it"
+        )
+    options = dict(tol=tol, graze_tol=graze_tol, dtmax=dtmax, solver=solver, rtol=rtol, atol=atol,
+                   root_tol=root_tol, chunk_steps=chunk_steps, max_steps=max_steps, corner_tol=corner_tol,
+                   horizon_eps=horizon_eps)
     state0 = np.asarray(state0, dtype=np.float64)
-    if state0.shape != (6,) or np.ndim(scene.R) != 0:
+    if any(np.ndim(leaf) for leaf in jax.tree_util.tree_leaves(scene)):
+        raise NotImplementedError("jaxbill.check takes one scene, not a batch; loop over a batch")
+    scene.check()
+    return flight_of().check(scene, state0, n, **options)
+
+
+def _check_column(
+    column: ColumnFlight, scene, state0: np.ndarray, n: int, *, tol, graze_tol, dtmax, solver, rtol, atol,
+    root_tol, chunk_steps, max_steps, corner_tol, horizon_eps,
+) -> CheckResult:
+    """``check`` for a ``ColumnFlight``: integrate flight by flight, certify each step, compare with ``jb.orbit``."""
+    start = time.perf_counter()
+    if state0.shape != (6,):
         raise NotImplementedError(
             "jaxbill.check takes one scene and one state0 of shape (6,); loop over a batch"
         )
-    scene.check()
     reference = _orbit(scene, state0, n)  # also validates state0 eagerly
-    R, ell, mass, inertia = (float(v) for v in (scene.R, scene.ell, scene.mass, scene.inertia))
-    if scene.kind == "rotor":
-        scale = math.sqrt(inertia / mass)
-    else:
-        scale = 1.0
-    column = _Column(
-        R=jnp.asarray(R), ell=jnp.asarray(ell), scale=jnp.asarray(scale), frozen=scene.kind == "lens",
-        circle=scene.kind == "circle",
-    )
+    length, ell, mass = float(column.length), float(column.ell), float(scene.mass)
+    gap_unit, scale = float(column.gap_unit), float(column.scale)
+    reach_inside, d_max = float(column.reach), float(column.hessian_bound)
     solver = diffrax.Tsit5() if solver is None else solver
 
     y = jnp.asarray(
         [state0[0], state0[1], scale * state0[2], state0[3], state0[4], scale * state0[5]], dtype=jnp.float64
     )
-    if scene.kind == "lens":
+    if column.frozen:
         y = y.at[5].set(0.0)
     t_abs = 0.0
     times, contacts, states, flags = [], [], [], []
     total_steps = 0
     for i in range(n):
         if dtmax is None:
-            # |W''| bound for this flight; inside the column |c| <= sqrt(R^2 - ell^2).
-            reach = max(math.sqrt(R * R - ell * ell), float(jnp.linalg.norm(y[0:2])))
+            # |W''| bound for this flight (ColumnFlight.curvature_bound), |c| <= reach inside.
+            reach = max(reach_inside, float(jnp.linalg.norm(y[0:2])))
             v, w = float(jnp.linalg.norm(y[3:5])), abs(float(y[5])) / scale
-            K = 2.0 * (v + ell * w) ** 2 + 2.0 * (reach + ell) * ell * w * w
-            step = math.sqrt(8.0 * graze_tol * R * R / K) if K > 0 else 1.0
+            K = 2.0 * d_max * ((v + ell * w) ** 2 + (reach + ell) * ell * w * w)
+            step = math.sqrt(8.0 * graze_tol * gap_unit / K) if K > 0 else 1.0
         else:
             step = float(dtmax)
         flight_t, flight_steps = 0.0, 0
@@ -509,7 +567,7 @@ def check(
             break
         t_abs += t_ev
         y = y_new
-        if scene.kind == "lens":
+        if column.frozen:
             y = y.at[5].set(0.0)
         alpha = _wrap(float(y[2]) / scale)
         times.append(t_abs)
@@ -522,8 +580,8 @@ def check(
 
     # Scales and the chaos horizon.
     V = math.sqrt(2.0 * float(scene.energy(jnp.asarray(state0))) / mass) or 1.0
-    spin_scale = V / scale if scene.kind == "rotor" else V / R
-    scales = (R / V, R, V, spin_scale)
+    spin_scale = V / length if column.frozen or column.single_sheet else V / scale
+    scales = (length / V, length, V, spin_scale)
     ref_t, ref_c, ref_s = (np.asarray(a) for a in (reference.t, reference.contact, reference.state))
     # Several perturbation directions: one alone may lie along a weakly growing direction.
     directions = np.array(
@@ -534,13 +592,13 @@ def check(
             [-0.4, -0.3, 0.2, 0.9, 0.3, 0.8],
         ]
     )
-    if scene.kind == "lens":
+    if column.frozen:
         directions[:, 5] = 0.0
-    if float(jnp.min(scene.gaps(jnp.asarray(state0)))) <= 1e-9 * R * R:
+    if float(jnp.min(scene.gaps(jnp.asarray(state0)))) <= 1e-9 * gap_unit:
         # A start on the wall (just after a collision): a moved end could be
         # pushed through it; perturbing the velocities alone keeps it valid.
         directions[:, 0:3] = 0.0
-    bumps = horizon_eps * directions * np.array([R, R, 1.0, V, V, spin_scale])
+    bumps = horizon_eps * directions * np.array([length, length, 1.0, V, V, spin_scale])
     perturbed = _orbit(scene, state0 + bumps, n)
     departed = np.zeros(n, bool)
     for b in range(len(bumps)):

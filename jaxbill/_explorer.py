@@ -38,211 +38,20 @@ import dataclasses
 import math
 import pathlib
 import time
-from typing import Any, Callable, NamedTuple
+from typing import NamedTuple
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from . import _walls_sections as walls_sections
 from ._collision import Orbit, orbit
-from ._scene import end_points
-from ._sections import contact_end, reduced_section, reduced_section_bounds, section_seeds, section_state, wall_length
-from ._stick_between_walls_2d import StickBetweenWalls2D
-from ._stick_between_walls_3d import StickBetweenWalls3D
-from ._stick_in_circle import StickInCircle
+from ._scene import SectionChart
+
+# A user's scene class may be registered here; jaxbill's scenes carry their own
+# ``section_chart`` (``jaxbill._scene.HasSection``).
 
 
-@dataclasses.dataclass(frozen=True)
-class SectionChart:
-    """How the explorer reads, seeds and draws one kind of scene's area-preserving section.
-
-    Every function takes the scene first; ``invariants`` is a dict of the
-    quantities the section holds fixed (its keys are those of
-    ``invariant_symbols``). Section points are ``(x, y)`` pairs: ``x`` across
-    the panel, ``y`` up.
-
-    Attributes:
-        title: the section's name, for the panel's title.
-        axis_labels: ``(x label, y label)`` with units.
-        invariant_symbols: the printed symbol of each invariant, keyed by
-            the keyword ``explore`` accepts for it (e.g. ``{"energy": "E"}``).
-        default_invariants: ``scene -> dict``: the invariants when
-            ``explore`` is given none.
-        x_range: ``scene -> (low, high)``: the span of ``x``.
-        edge: ``(scene, x (m,), invariants) -> (m, 2)``: the lowest and
-            highest reachable ``y`` at each ``x`` (NaN where none).
-        start: ``(scene, x (...), y (...), invariants) -> (states (..., S),
-            contacts (...))``: the state just after a collision at the
-            section point and its contact code; NaN states where
-            ``(x, y)`` is not reachable.
-        seeds: ``(scene, count, invariants) -> (states (count, S), contacts
-            (count,))``: starts spread evenly (in the section's area) over it.
-        points: ``(scene, states (..., S), contacts (...)) -> (..., 2)``: the
-            section point of each collision, NaN for collisions off the
-            section. Traceable: the explorer compiles it.
-        draw_configuration: ``(ax, scene, state0 (S,), orbit, color) ->
-            None``: the orbit (an ``Orbit`` of one orbit) in configuration
-            space, on a cleared ``Axes``.
-    """
-
-    title: str
-    axis_labels: tuple[str, str]
-    invariant_symbols: dict[str, str]
-    default_invariants: Callable[[Any], dict[str, float]]
-    x_range: Callable[[Any], tuple[float, float]]
-    edge: Callable[..., np.ndarray]
-    start: Callable[..., tuple[Any, Any]]
-    seeds: Callable[..., tuple[Any, Any]]
-    points: Callable[..., Any]
-    draw_configuration: Callable[..., None]
-
-
-# -- the stick in a circle: the reduced section ---------------------------------
-
-
-def _circle_start(scene, s, p, invariants):
-    states = section_state(scene, s, p, invariants["energy"], invariants["angular_momentum"])
-    return states, contact_end(scene, jnp.nan_to_num(states))
-
-
-def _circle_seeds(scene, count, invariants):
-    states = section_seeds(scene, count, invariants["energy"], invariants["angular_momentum"])
-    return states, contact_end(scene, states)
-
-
-def _circle_points(scene, states, contacts):
-    del contacts  # the reduced section finds the touching end from the state
-    return reduced_section(scene, states)
-
-
-def _circle_edge(scene, s, invariants):
-    return np.asarray(reduced_section_bounds(scene, s, invariants["energy"], invariants["angular_momentum"]))
-
-
-def _draw_circle_configuration(ax, scene, state0, orb, color):
-    radius = float(scene.R)
-    turn = np.linspace(0.0, 2.0 * np.pi, 300)
-    ax.plot(radius * np.cos(turn), radius * np.sin(turn), color="k", lw=1.2)
-    states = np.asarray(orb.state)
-    path = np.concatenate([np.asarray(state0)[None, :2], states[:, :2]])
-    ax.plot(path[:, 0], path[:, 1], color=color, lw=0.8, alpha=0.9)
-    ends = np.asarray(end_points(scene, states))  # (n, 2, 2)
-    for stick in ends:
-        ax.plot(stick[:, 0], stick[:, 1], color="0.3", lw=0.9, alpha=0.55)
-    ax.plot(*path[0], "o", color=color, ms=5)
-    ax.set_xlim(-1.05 * radius, 1.05 * radius)
-    ax.set_ylim(-1.05 * radius, 1.05 * radius)
-    ax.set_xlabel("x (length)")
-    ax.set_ylabel("y (length)")
-
-
-CIRCLE_CHART = SectionChart(
-    title="reduced section",
-    axis_labels=(r"$s$: arc length along the rotating lens wall (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
-    invariant_symbols={"energy": "E", "angular_momentum": "L"},
-    default_invariants=lambda scene: {"energy": 0.5, "angular_momentum": 0.0},
-    x_range=lambda scene: (0.0, float(wall_length(scene))),
-    edge=_circle_edge,
-    start=_circle_start,
-    seeds=_circle_seeds,
-    points=_circle_points,
-    draw_configuration=_draw_circle_configuration,
-)
-
-
-# -- the stick between two walls: the floor section --------------------------------
-
-
-def _lower_end_contact(theta):
-    """Contact code of the end that ``floor_state`` rests on the floor: P2 (-1) for ``cos theta >= 0``."""
-    return jnp.where(jnp.cos(jnp.asarray(theta)) >= 0.0, -1, 1).astype(jnp.int32)
-
-
-def _walls_start(scene, theta, p, invariants):
-    states = walls_sections.floor_state(scene, theta, p, invariants["energy"], invariants.get("spin", 0.0))
-    theta, p = jnp.broadcast_arrays(jnp.asarray(theta, jnp.float64), jnp.asarray(p, jnp.float64))
-    return states, _lower_end_contact(theta)
-
-
-def _walls_seeds(scene, count, invariants):
-    spin = invariants.get("spin", 0.0)
-    theta, p = walls_sections.floor_seed_points(scene, count, invariants["energy"], spin)
-    return walls_sections.floor_state(scene, theta, p, invariants["energy"], spin), _lower_end_contact(theta)
-
-
-def _walls_edge(scene, theta, invariants):
-    bound = np.asarray(walls_sections.floor_section_bound(scene, theta, invariants["energy"],
-                                                          invariants.get("spin", 0.0)))
-    return np.stack([-bound, bound], axis=-1)
-
-
-def _draw_walls_configuration(ax, scene, state0, orb, color):
-    """The reduced billiard ``(kappa theta, z)`` with the stick drawn at its contacts, centred at ``(kappa theta, z)``.
-
-    ``theta`` (the 2D angle, or the 3D polar angle) is taken mod ``pi``, the
-    period of the walls, so the whole orbit stays in one cell.
-    """
-    from .plotting import draw_wall_billiard
-
-    kappa = float(walls_sections.gyration_radius(scene))
-    ell = float(scene.ell)
-    draw_wall_billiard(ax, scene, (0.0, np.pi))
-    paths = walls_sections.flight_paths(scene, state0, orb, 24).reshape(-1, 2)
-    across = np.remainder(paths[:, 0], kappa * np.pi)
-    jumps = np.abs(np.diff(across)) > 0.5 * kappa * np.pi
-    across = np.insert(across, np.flatnonzero(jumps) + 1, np.nan)
-    height = np.insert(paths[:, 1], np.flatnonzero(jumps) + 1, np.nan)
-    ax.plot(across, height, color=color, lw=0.8, alpha=0.9)
-    ends = np.asarray(end_points(scene, orb.state))  # (n, 2, D), height last
-    heights = 0.5 * (ends[:, 0, -1] + ends[:, 1, -1])
-    lean = 0.5 * (ends[:, 0] - ends[:, 1])  # (n, D): ell u, from the centre to P1
-    # in 3D the polar angle (>= 0); in 2D the signed angle, which the mod pi below keeps apart
-    sideways = np.hypot(lean[:, 0], lean[:, 1]) if ends.shape[-1] == 3 else lean[:, 0]
-    upward = lean[:, -1]
-    theta = np.remainder(np.arctan2(sideways, upward), np.pi)
-    centres = np.stack([kappa * theta, heights], axis=-1)
-    arm = np.stack([np.sin(theta), np.cos(theta)], axis=-1) * ell
-    for centre, reach in zip(centres, arm):
-        stick = np.stack([centre - reach, centre + reach])
-        ax.plot(stick[:, 0], stick[:, 1], color="0.3", lw=0.9, alpha=0.55)
-    ax.set_xlabel(r"$\kappa\,(\theta$ mod $\pi)$ (length); the stick drawn there at each contact")
-
-
-WALLS_2D_CHART = SectionChart(
-    title="floor section",
-    axis_labels=(r"$\theta$ mod $\pi$ (rad; stick flat at $\pi/2$)",
-                 r"$p = (I\dot\theta + M v_z\, dz/d\theta)/\sqrt{2 I E'}$"),
-    invariant_symbols={"energy": "E'"},
-    default_invariants=lambda scene: {"energy": 0.5},
-    x_range=lambda scene: (0.0, math.pi),
-    edge=_walls_edge,
-    start=_walls_start,
-    seeds=_walls_seeds,
-    points=walls_sections.floor_section,
-    draw_configuration=_draw_walls_configuration,
-)
-
-
-def _default_spin(scene) -> float:
-    """``I w_z = 0.6 sqrt(2 I E')`` at ``E' = 1/2``: islands and chaos mixed (docs/accuracy.md, walls)."""
-    return 0.6 * math.sqrt(float(scene.inertia))
-
-
-WALLS_3D_CHART = dataclasses.replace(
-    WALLS_2D_CHART,
-    title="reduced floor section",
-    axis_labels=(r"polar angle $\theta$ of the stick (rad)", WALLS_2D_CHART.axis_labels[1]),
-    invariant_symbols={"energy": "E'", "spin": r"I w_z"},
-    default_invariants=lambda scene: {"energy": 0.5, "spin": _default_spin(scene)},
-    points=walls_sections.reduced_wall_section,
-)
-
-SECTION_CHARTS: dict[type, SectionChart] = {
-    StickInCircle: CIRCLE_CHART,
-    StickBetweenWalls2D: WALLS_2D_CHART,
-    StickBetweenWalls3D: WALLS_3D_CHART,
-}
+SECTION_CHARTS: dict[type, SectionChart] = {}
 
 
 def register_section_chart(scene_class: type, chart: SectionChart) -> None:
@@ -262,7 +71,7 @@ def section_chart(scene) -> SectionChart:
     for scene_class in type(scene).__mro__:
         if scene_class in SECTION_CHARTS:
             return SECTION_CHARTS[scene_class]
-    known = ", ".join(sorted(c.__name__ for c in SECTION_CHARTS))
+    known = ", ".join(sorted(c.__name__ for c in SECTION_CHARTS)) or "none registered"
     raise TypeError(f"scene: {type(scene).__name__} has no area-preserving section to explore "
                     f"(known: {known}; give the scene a section_chart or call register_section_chart)")
 

@@ -66,6 +66,19 @@ in the dynamical coordinates (the horizontal motion drifts freely; in 3D up to
 a rotation of the stick about the vertical). Their section coordinates,
 residuals and multipliers are described in ``jaxbill._periodic_walls``.
 
+Scenes with no symmetry
+-----------------------
+Which of these solvers runs is the scene's answer to ``periodic_symmetry``
+(``jaxbill._scene.HasPeriodicSymmetry``), never its type: ``"rotation"``
+(the reduced coordinates above), ``"translation"`` (the walls) or ``"none"``
+(``StickInEllipse``). With nothing to divide out, the unknowns are the
+dynamical components of the state just after the first collision, and the
+residuals ``map^p(s) - s`` (angles wrapped), ``E - E0`` and the gap of the end
+that touches at ``s`` (it stays on the section); see ``_PlainProblem``. Its
+multipliers are those of ``map^p`` on the tangent space of ``{E = E0, g_k =
+0}``: 2 for a point or a stick that never turns, 4 for a turning stick (the
+ellipse conserves no angular momentum).
+
 Derivatives
 -----------
 The solve is made differentiable with respect to the scene's leaves (and the
@@ -78,6 +91,7 @@ derivative is ``-J^+ dF/dscene``, never a derivative of the iterations.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -86,10 +100,9 @@ import numpy as np
 import optimistix as optx
 
 from . import _periodic_walls as walls_orbits
-from ._periodic_walls import wrap_angle as _wrap
 from ._collision import _check_eagerly, _collide
-from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
-from ._stick_in_circle import StickInCircle
+from ._periodic_walls import wrap_angle as _wrap
+from ._scene import NO_CONTACT, PERIODIC_SYMMETRIES, SEVERAL_CONTACTS, Scene
 from ._validation import MAX_STORED_COUNT, check_count, require_x64
 
 ELLIPTIC, PARABOLIC, HYPERBOLIC, INVERSE_HYPERBOLIC = 0, 1, 2, 3
@@ -107,7 +120,7 @@ def _rotate(vec, angle):
     return jnp.stack([c * vec[0] - s * vec[1], s * vec[0] + c * vec[1]])
 
 
-def reduced_size(scene: StickInCircle) -> int:
+def reduced_size(scene: Scene) -> int:
     """Number of reduced section coordinates: 4 (rotor), 3 (lens), 2 (circle)."""
     return {"rotor": 4, "lens": 3, "circle": 2}[scene.kind]
 
@@ -125,7 +138,7 @@ def _short_z(scene, z4):
     return {"rotor": z4, "lens": z4[:3], "circle": z4[1:3]}[scene.kind]
 
 
-def reduced_state(scene: StickInCircle, z: jax.Array, phi: jax.Array = 0.0) -> jax.Array:
+def reduced_state(scene: Scene, z: jax.Array, phi: jax.Array = 0.0) -> jax.Array:
     """The state just after a collision of end P1 at polar angle ``phi``, from reduced coordinates ``z``."""
     beta, w_r, w_t, omega = _full_z(scene, jnp.asarray(z, jnp.float64))
     alpha = phi - beta
@@ -136,7 +149,7 @@ def reduced_state(scene: StickInCircle, z: jax.Array, phi: jax.Array = 0.0) -> j
     return jnp.stack([centre[0], centre[1], _wrap(alpha), v[0], v[1], omega])
 
 
-def reduced_coordinates(scene: StickInCircle, state: jax.Array, contact: jax.Array):
+def reduced_coordinates(scene: Scene, state: jax.Array, contact: jax.Array):
     """Reduced coordinates ``z`` and contact angle ``phi`` of a state just after a collision.
 
     ``contact`` is the code returned by ``collide`` (+1 or -1; for a corner, 2,
@@ -173,7 +186,7 @@ def _iterate(scene, z, p, with_flights=False):
 class _Problem(eqx.Module):
     """Residual of the periodic-orbit equations in scaled unknowns ``zeta``."""
 
-    scene: StickInCircle
+    scene: Any
     energy: jax.Array
     angular_momentum: jax.Array
     rotation: jax.Array
@@ -430,14 +443,167 @@ def _walls_periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, p
     ), jnp.zeros(())
 
 
+# -- scenes with no continuous symmetry (periodic_symmetry == "none") -------------------
+
+
+class _PlainProblem(eqx.Module):
+    """``map^p(s) = s`` in every dynamical coordinate of the state ``s`` just after a collision.
+
+    Unknowns ``zeta``: the dynamical components (``scene.dynamical_indices``)
+    of ``s`` relative to the start ``s_1``, in units of the table's length
+    ``sqrt(gap_scale)`` (the first half of the state, ``q``) and of the speed
+    ``sqrt(2 E0 / M)`` (the second half, ``qdot``); the others are held.
+    Residuals: ``map^p(s) - s`` on the dynamical components (angles,
+    ``scene.periodic_angles``, wrapped), ``E(s)/E0 - 1`` and the gap of the
+    end that touched at ``s_1`` in units of ``gap_scale`` (keeps ``s`` on the
+    section).
+    """
+
+    scene: Any
+    start: jax.Array
+    energy: jax.Array
+    contact_index: jax.Array
+    p: int = eqx.field(static=True)
+
+    def scales(self) -> jax.Array:
+        half = self.scene.state_size // 2
+        length = jnp.sqrt(self.scene.gap_scale)
+        speed = jnp.sqrt(2.0 * self.energy / self.scene.mass)
+        full = jnp.concatenate([jnp.full((half,), length), jnp.full((half,), speed)])
+        return full[jnp.asarray(self.scene.dynamical_indices)]
+
+    def state(self, zeta) -> jax.Array:
+        indices = jnp.asarray(self.scene.dynamical_indices)
+        return self.start.at[indices].add(zeta * self.scales())
+
+    def iterate(self, s0):
+        def step(s, _):
+            after, dt, contact = _collide(self.scene, s)
+            return after, (after, dt, contact)
+
+        _, (states, flights, contacts) = jax.lax.scan(step, s0, None, length=self.p)
+        return states, flights, contacts
+
+    def residual_from(self, s0, s_p) -> jax.Array:
+        indices = jnp.asarray(self.scene.dynamical_indices)
+        difference = s_p - s0
+        angles = jnp.asarray(getattr(self.scene, "periodic_angles", ()), dtype=jnp.int32)
+        if angles.size:
+            difference = difference.at[angles].set(_wrap(difference[angles]))
+        gap = jnp.take(self.scene.gaps(s0), self.contact_index) / self.scene.gap_scale
+        return jnp.concatenate([
+            difference[indices] / self.scales(),
+            jnp.stack([self.scene.energy(s0) / self.energy - 1.0, gap]),
+        ])
+
+    def __call__(self, zeta, _=None):
+        s0 = self.state(zeta)
+        states, _, _ = self.iterate(s0)
+        return self.residual_from(s0, states[-1])
+
+
+def _plain_periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol,
+                          parabolic_tol):
+    """``find_periodic_orbit`` for a scene with no symmetry to divide out (``periodic_symmetry = "none"``).
+
+    Multipliers: the Jacobian ``J`` of ``map^p`` in the dynamical coordinates
+    maps the tangent space ``T`` of ``{E = E0, g_k = 0}`` (the energy shell on
+    the section) to itself at the fixed point; ``multipliers`` are the
+    eigenvalues of ``J`` restricted to ``T`` (``N^T J N``, ``N`` an orthonormal
+    basis of ``T``): 2 for a point or a stick that never turns, 4 for a
+    turning stick. ``trace`` is their sum; the label comes from it when there
+    are two, else from the largest ``|mu|`` (hyperbolic above ``1 +
+    parabolic_tol``, elliptic otherwise).
+    """
+    del angular_momentum, rotation, pin_l, pin_rotation  # nothing is conserved but E; no rotation
+    start, _, first_contact = _collide(scene, guess)
+    contact_index = jnp.where(first_contact == -1, 1, 0)
+    problem = _PlainProblem(scene, start, energy, contact_index, p)
+    k = len(scene.dynamical_indices)
+    zeta, _ = _solve(problem, jnp.zeros(k), max_steps)
+    s0 = problem.state(zeta)
+    states, flights, contacts = problem.iterate(s0)
+    residual = jnp.max(jnp.abs(jax.lax.stop_gradient(problem.residual_from(s0, states[-1]))))
+    indices = jnp.asarray(scene.dynamical_indices)
+
+    def p_map(q):
+        after, _, _ = problem.iterate(s0.at[indices].set(q))
+        return after[-1][indices]
+
+    frozen_s0 = jax.lax.stop_gradient(s0)
+    jac = jax.jacfwd(p_map)(frozen_s0[indices])
+
+    def constraints(q):
+        s = frozen_s0.at[indices].set(q)
+        return jnp.stack([scene.energy(s), jnp.take(scene.gaps(s), contact_index)])
+
+    grads = jax.jacfwd(constraints)(frozen_s0[indices])
+    _, _, vt = jnp.linalg.svd(grads, full_matrices=True)
+    basis = vt[2:].T  # (k, k - 2): orthonormal basis of T
+    restricted = basis.T @ jac @ basis
+    multipliers = jnp.linalg.eigvals(restricted).astype(jnp.complex128)
+    trace = jnp.real(jnp.trace(restricted))
+    if k - 2 == 2:
+        stability = _stability(trace, parabolic_tol)
+    else:
+        largest = jnp.max(jnp.abs(multipliers))
+        stability = jnp.where(largest > 1.0 + parabolic_tol, HYPERBOLIC, ELLIPTIC).astype(jnp.int32)
+    speed = jnp.sqrt(2.0 * energy / scene.mass)
+    grazing = jnp.min(flights) <= _MIN_FLIGHT * jnp.sqrt(scene.gap_scale) / speed
+    single = jnp.all((contacts != NO_CONTACT) & (contacts != SEVERAL_CONTACTS))
+    single &= (first_contact != NO_CONTACT) & (first_contact != SEVERAL_CONTACTS) & (contacts[-1] == first_contact)
+    all_states = jnp.concatenate([s0[None], states[:-1]])
+    all_contacts = jnp.concatenate([first_contact[None], contacts[:-1]])
+    momentum = scene.angular_momentum(s0) if hasattr(scene, "angular_momentum") else jnp.full((), jnp.nan)
+    return PeriodicOrbit(
+        state=s0,
+        states=states,
+        contacts=contacts,
+        points=scene.section(all_states, all_contacts),
+        period=jnp.sum(flights),
+        rotation=jnp.zeros(()),
+        residual=residual,
+        multipliers=multipliers,
+        trace=trace,
+        stability=stability,
+        converged=(residual <= tol) & ~grazing & single,
+        energy=scene.energy(s0),
+        angular_momentum=momentum,
+        monodromy=jac,
+        p=p,
+    ), jnp.zeros(())
+
+
+def _plain_targets(scene, guess, e, angular_momentum, rotation):
+    if angular_momentum is not None:
+        raise ValueError(
+            f"angular_momentum cannot be pinned for {type(scene).__name__}: no angular momentum is conserved"
+        )
+    if rotation is not None and float(rotation) != 0.0:
+        raise ValueError(f"rotation must be None or 0 for {type(scene).__name__}: it has no rotation symmetry")
+    return e, jnp.zeros(()), jnp.zeros(()), jnp.asarray(False), jnp.asarray(False)
+
+
 def _check_period(period) -> int:
     return check_count("period", period, 1, "collisions", MAX_STORED_COUNT)
 
 
+def _symmetry(scene) -> str:
+    """The symmetry ``scene`` says its periodic orbits divide out (``HasPeriodicSymmetry``)."""
+    symmetry = getattr(scene, "periodic_symmetry", None)
+    if symmetry not in PERIODIC_SYMMETRIES:
+        raise TypeError(
+            f"scene: {type(scene).__name__} has no periodic_symmetry (one of {PERIODIC_SYMMETRIES}; "
+            "the HasPeriodicSymmetry protocol of jaxbill._scene): find_periodic_orbit cannot search it"
+        )
+    return symmetry
+
+
 def _targets(scene, guess, energy, angular_momentum, rotation):
     e = scene.energy(guess) if energy is None else jnp.asarray(energy, jnp.float64)
-    if not isinstance(scene, StickInCircle):
-        return _walls_targets(scene, guess, e, angular_momentum, rotation)
+    symmetry = _symmetry(scene)
+    if symmetry != "rotation":
+        return _TARGETS[symmetry](scene, guess, e, angular_momentum, rotation)
     pin_rotation = rotation is not None
     if scene.kind == "rotor":
         pin_l = (angular_momentum is not None) or not pin_rotation
@@ -505,6 +671,10 @@ def find_periodic_orbit(
     its first section point is the solution rotated to the polar angle of the
     guess's own first contact.
 
+    A scene with no symmetry (``periodic_symmetry = "none"``: ``StickInEllipse``):
+    periodic in every dynamical coordinate; ``angular_momentum`` and a
+    nonzero ``rotation`` are refused (see the module docstring).
+
     Sticks between walls (``StickBetweenWalls2D``, ``StickBetweenWalls3D``):
     the same, with the section coordinates of ``jaxbill._periodic_walls``:
     periodic in the dynamical coordinates, the horizontal motion drifting
@@ -513,8 +683,9 @@ def find_periodic_orbit(
     which wall) is the orbit's first contact.
 
     Args:
-        scene: a ``StickInCircle``, ``StickBetweenWalls2D`` or
-            ``StickBetweenWalls3D`` (leaves may be traced: the result is
+        scene: any scene that answers ``periodic_symmetry`` (``StickInCircle``,
+            ``StickInEllipse``, ``StickBetweenWalls2D``,
+            ``StickBetweenWalls3D``; leaves may be traced: the result is
             differentiable in them by the implicit function theorem).
         guess: a state, shape ``(S,)`` (``S = scene.state_size``).
         period: number of collisions ``p`` (Python int, static).
@@ -549,7 +720,7 @@ def find_periodic_orbit(
 
 @eqx.filter_jit
 def _find_jit(scene, guess, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol):
-    solve = _periodic_orbit if isinstance(scene, StickInCircle) else _walls_periodic_orbit
+    solve = _SOLVERS[_symmetry(scene)]
 
     def one(g, e_, l_):
         return solve(scene, g, p, e_, l_, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol)
@@ -557,6 +728,11 @@ def _find_jit(scene, guess, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol
     if guess.ndim == 1:
         return one(guess, e, l0)
     return jax.vmap(one)(guess, e, l0)
+
+
+# One solver (and one reading of the pinned targets) per symmetry, not per scene.
+_SOLVERS = {"rotation": _periodic_orbit, "translation": _walls_periodic_orbit, "none": _plain_periodic_orbit}
+_TARGETS = {"translation": _walls_targets, "none": _plain_targets}
 
 
 def _same_orbit(a: PeriodicOrbit, b: PeriodicOrbit, atol: float) -> bool:
@@ -629,7 +805,7 @@ def find_periodic_orbits(
 
 
 def continue_periodic_orbit(
-    scene: StickInCircle,
+    scene: Scene,
     orbit: PeriodicOrbit,
     parameter: str,
     values,
@@ -665,8 +841,11 @@ def continue_periodic_orbit(
         of shape ``(len(values), K)``.
     """
     require_x64()
-    if not isinstance(scene, StickInCircle):
-        raise TypeError(f"continue_periodic_orbit takes a StickInCircle; got {type(scene).__name__}")
+    if _symmetry(scene) != "rotation":
+        raise TypeError(
+            f"continue_periodic_orbit follows relative periodic orbits of a rotation-symmetric scene "
+            f"(StickInCircle); got {type(scene).__name__} (periodic_symmetry = {scene.periodic_symmetry!r})"
+        )
     if parameter not in ("ell", "R", "mass", "inertia"):
         raise ValueError(f"parameter must be 'ell', 'R', 'mass' or 'inertia'; got {parameter!r}")
     if parameter == "inertia" and scene.kind != "rotor":
@@ -696,7 +875,7 @@ def _with_parameter(scene, parameter, value):
     """``scene`` with one parameter replaced, checked as the constructor checks it."""
     values = {name: float(getattr(scene, name)) for name in ("R", "ell", "mass", "inertia")}
     values[parameter] = float(value)
-    checked = StickInCircle(**values)  # raises ValueError out of range
+    checked = type(scene)(**values)  # raises ValueError out of range
     if checked.kind != scene.kind:
         raise ValueError(f"{parameter} = {float(value)} changes the kind of scene ({scene.kind} -> {checked.kind})")
     return eqx.tree_at(lambda s: getattr(s, parameter), scene, jnp.asarray(value, jnp.float64))

@@ -167,12 +167,14 @@ def divergence(scene, states, twin_states_, states0) -> np.ndarray:
 
     ``states`` and ``twin_states_`` are ``(B, n, 6)`` (``jb.orbit(...).state``);
     distances are ``|(x, y, vx, vy)_twin - (x, y, vx, vy)|`` in units of
-    ``(R, |v_0|)``, ``|v_0|`` each orbit's start speed. Returns ``(B,)``.
+    ``(R, |v_0|)``, ``|v_0|`` each orbit's start speed and ``R`` the scene's
+    length ``sqrt(gap_scale)`` (the circle's radius; ``sqrt(ab)`` for the
+    ellipse). Returns ``(B,)``.
     """
     states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
     first, second = np.asarray(states), np.asarray(twin_states_)
     speed = np.hypot(states0[:, 3], states0[:, 4])[:, None]
-    radius = float(np.max(np.asarray(scene.R)))
+    radius = float(np.max(np.sqrt(np.asarray(scene.gap_scale))))  # R for the circle, sqrt(ab) for the ellipse
     difference = np.sqrt(
         np.sum((first[..., 0:2] - second[..., 0:2]) ** 2, axis=-1) / radius**2
         + np.sum((first[..., 3:5] - second[..., 3:5]) ** 2, axis=-1) / speed**2
@@ -194,7 +196,9 @@ def twin_divergence(scene, states0, n: int, delta: float = 1e-11) -> np.ndarray:
     orbits already run.)
 
     Args:
-        scene: a ``StickInCircle``.
+        scene: a planar stick ``[x, y, alpha, vx, vy, omega]`` in a table
+            (``StickInCircle``, ``StickInEllipse``; the walls have
+            ``wall_twin_divergence``).
         states0: ``(B, 6)`` start states.
         n: number of collisions (a few thousand tells chaos with Lyapunov
             exponents above ``~0.01`` per collision).

@@ -97,11 +97,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._stick_in_circle import StickInCircle
+from ._scene import SectionChart, end_points
 from ._validation import MAX_STORED_COUNT, as_states, check_count, require_x64
 
 
-def paper_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
+def paper_section(scene, states: jax.Array) -> jax.Array:
     """The paper's projected section: ``[L_z, phi_c]`` with ``phi_c`` in units of ``pi``.
 
     ``L_z = y p_x - x p_y`` (units mass * length^2 / time; the paper's sign,
@@ -125,13 +125,13 @@ def paper_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
     return jnp.stack([l_z, phi_c], axis=-1)
 
 
-def contact_end(scene: StickInCircle, states: jax.Array) -> jax.Array:
+def contact_end(scene, states: jax.Array) -> jax.Array:
     """The end on the wall in each state: ``+1`` (P1) or ``-1`` (P2); the one with the smaller gap."""
     gaps = jnp.abs(scene.gaps(jnp.asarray(states)))
     return jnp.where(gaps[..., 0] <= gaps[..., 1], 1, -1).astype(jnp.int32)
 
 
-def half_corner_angle(scene: StickInCircle) -> jax.Array:
+def half_corner_angle(scene) -> jax.Array:
     """``beta_max = arccos(ell / R)``: the largest angle between the stick and the radius at a contact.
 
     ``pi / 2`` for the circle (``ell = 0``).
@@ -139,14 +139,14 @@ def half_corner_angle(scene: StickInCircle) -> jax.Array:
     return jnp.arccos(scene.ell / scene.R)
 
 
-def wall_length(scene: StickInCircle) -> jax.Array:
+def wall_length(scene) -> jax.Array:
     """Length of the section's ``s`` axis: ``4 R beta_max`` for a stick, ``2 pi R`` for the circle."""
     if scene.kind == "circle":
         return 2.0 * jnp.pi * scene.R
     return 4.0 * scene.R * half_corner_angle(scene)
 
 
-def _contact_geometry(scene: StickInCircle, states: jax.Array):
+def _contact_geometry(scene, states: jax.Array):
     """Contact angle ``Phi``, arm angle ``beta``, touching end and unit vectors at the contact."""
     x, y, alpha = states[..., 0], states[..., 1], states[..., 2]
     end = contact_end(scene, states)
@@ -162,7 +162,7 @@ def _tangential_velocity(states: jax.Array, phi: jax.Array) -> jax.Array:
     return -jnp.sin(phi) * states[..., 3] + jnp.cos(phi) * states[..., 4]
 
 
-def _wall_coordinate(scene: StickInCircle, states: jax.Array):
+def _wall_coordinate(scene, states: jax.Array):
     phi, beta, end = _contact_geometry(scene, states)
     if scene.kind == "circle":
         s = scene.R * jnp.remainder(phi, 2.0 * jnp.pi)
@@ -173,7 +173,7 @@ def _wall_coordinate(scene: StickInCircle, states: jax.Array):
     return s, phi
 
 
-def reduced_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
+def reduced_section(scene, states: jax.Array) -> jax.Array:
     """The section of the symmetry-reduced system: ``[s, p]`` (see the module docstring).
 
     ``s`` is the arc length of the contact along the lens-shaped wall in the
@@ -198,7 +198,7 @@ def reduced_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
     return jnp.stack([s, p], axis=-1)
 
 
-def birkhoff_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
+def birkhoff_section(scene, states: jax.Array) -> jax.Array:
     """Birkhoff coordinates ``[s, sin chi]`` of the centre on a fixed wall.
 
     For the static lens (``inertia = inf``): ``s`` the arc length along the
@@ -219,7 +219,7 @@ def birkhoff_section(scene: StickInCircle, states: jax.Array) -> jax.Array:
     return reduced_section(scene, states)
 
 
-def reduced_section_bounds(scene: StickInCircle, s: jax.Array, energy, angular_momentum) -> jax.Array:
+def reduced_section_bounds(scene, s: jax.Array, energy, angular_momentum) -> jax.Array:
     """The reachable range ``[p_min, p_max]`` of the reduced section at ``s`` for given ``E``, ``L``.
 
     At a contact at ``s`` the velocity ``V = (sqrt(M) v, sqrt(I) omega)`` has
@@ -248,7 +248,7 @@ def reduced_section_bounds(scene: StickInCircle, s: jax.Array, energy, angular_m
     return jnp.stack([(b - root) / a, (b + root) / a], axis=-1)
 
 
-def _beta_from_s(scene: StickInCircle, s: jax.Array):
+def _beta_from_s(scene, s: jax.Array):
     beta_max = half_corner_angle(scene)
     s = jnp.remainder(s, wall_length(scene))
     on_p1 = s < 2.0 * scene.R * beta_max
@@ -257,7 +257,7 @@ def _beta_from_s(scene: StickInCircle, s: jax.Array):
 
 
 def section_state(
-    scene: StickInCircle,
+    scene,
     s: jax.Array,
     p: jax.Array,
     energy=0.5,
@@ -366,7 +366,7 @@ def _halton(index: np.ndarray, base: int) -> np.ndarray:
     return out
 
 
-def section_seeds(scene: StickInCircle, count: int, energy=0.5, angular_momentum=0.0, *, half: bool = True,
+def section_seeds(scene, count: int, energy=0.5, angular_momentum=0.0, *, half: bool = True,
                   offset: int = 1) -> jax.Array:
     """``count`` start states spread evenly over the reachable part of the ``(s, p)`` section.
 
@@ -402,3 +402,56 @@ def section_seeds(scene: StickInCircle, count: int, energy=0.5, angular_momentum
     s = jnp.asarray(chosen_s[:count])
     p = jnp.asarray(chosen_p[:count])
     return section_state(scene, s, p, energy, angular_momentum)
+
+
+# -- the explorer's chart of the reduced section (StickInCircle.section_chart) ----------
+
+
+def _circle_start(scene, s, p, invariants):
+    states = section_state(scene, s, p, invariants["energy"], invariants["angular_momentum"])
+    return states, contact_end(scene, jnp.nan_to_num(states))
+
+
+def _circle_seeds(scene, count, invariants):
+    states = section_seeds(scene, count, invariants["energy"], invariants["angular_momentum"])
+    return states, contact_end(scene, states)
+
+
+def _circle_points(scene, states, contacts):
+    del contacts  # the reduced section finds the touching end from the state
+    return reduced_section(scene, states)
+
+
+def _circle_edge(scene, s, invariants):
+    return np.asarray(reduced_section_bounds(scene, s, invariants["energy"], invariants["angular_momentum"]))
+
+
+def _draw_circle_configuration(ax, scene, state0, orb, color):
+    radius = float(scene.R)
+    turn = np.linspace(0.0, 2.0 * np.pi, 300)
+    ax.plot(radius * np.cos(turn), radius * np.sin(turn), color="k", lw=1.2)
+    states = np.asarray(orb.state)
+    path = np.concatenate([np.asarray(state0)[None, :2], states[:, :2]])
+    ax.plot(path[:, 0], path[:, 1], color=color, lw=0.8, alpha=0.9)
+    ends = np.asarray(end_points(scene, states))  # (n, 2, 2)
+    for stick in ends:
+        ax.plot(stick[:, 0], stick[:, 1], color="0.3", lw=0.9, alpha=0.55)
+    ax.plot(*path[0], "o", color=color, ms=5)
+    ax.set_xlim(-1.05 * radius, 1.05 * radius)
+    ax.set_ylim(-1.05 * radius, 1.05 * radius)
+    ax.set_xlabel("x (length)")
+    ax.set_ylabel("y (length)")
+
+
+CIRCLE_CHART = SectionChart(
+    title="reduced section",
+    axis_labels=(r"$s$: arc length along the rotating lens wall (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+    invariant_symbols={"energy": "E", "angular_momentum": "L"},
+    default_invariants=lambda scene: {"energy": 0.5, "angular_momentum": 0.0},
+    x_range=lambda scene: (0.0, float(wall_length(scene))),
+    edge=_circle_edge,
+    start=_circle_start,
+    seeds=_circle_seeds,
+    points=_circle_points,
+    draw_configuration=_draw_circle_configuration,
+)

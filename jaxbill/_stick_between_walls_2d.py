@@ -27,9 +27,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _flat_walls as walls
-from ._scene import component
+from ._scene import SectionChart, chosen_section, component
 from ._step import components, stacked
 from ._validation import require_x64
+from ._wall_charts import WALLS_2D_CHART
+from ._walls_checker import ReducedWallsFlight
+from ._walls_sections import floor_section, floor_state
 
 
 class StickBetweenWalls2D(eqx.Module):
@@ -209,5 +212,37 @@ class StickBetweenWalls2D(eqx.Module):
         """The flow's vector field during free flight, ``[vx, vz, omega, 0, 0, 0]``, shape ``(..., 6)``."""
         state = jnp.asarray(state)
         return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+    # -- what the analyses ask (jaxbill._scene's capability protocols) ---------------------
+
+    sections: ClassVar[tuple[str, ...]] = ("floor",)
+    area_preserving_section: ClassVar[str] = "floor"
+    # The horizontal drift divides out.
+    periodic_symmetry: ClassVar[str] = "translation"
+
+    def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
+        """Section points ``(..., 2)`` at floor collisions, NaN elsewhere (``HasSection``; ``jb.floor_section``).
+
+        ``contacts`` ``(...)``, the collisions' contact codes, are needed: they say which wall was hit.
+        """
+        chosen_section(self, name)
+        if contacts is None:
+            raise ValueError("contacts: the floor section needs the collisions' contact codes (Orbit.contact)")
+        return floor_section(self, states, contacts)
+
+    def section_state(self, point: jax.Array, energy=0.5, spin=0.0) -> jax.Array:
+        """The state just after a floor collision at ``point = (theta, p)``, shape ``(..., 2)``, at the
+        energy ``E'`` of the dynamical part (``spin`` must be 0) (``jb.floor_state``)."""
+        point = jnp.asarray(point, dtype=jnp.float64)
+        return floor_state(self, point[..., 0], point[..., 1], energy, spin)
+
+    @property
+    def section_chart(self) -> SectionChart:
+        """The explorer's chart of the floor section."""
+        return WALLS_2D_CHART
+
+    def checker_flight(self) -> ReducedWallsFlight:
+        """The reduced ``(z, psi)`` flight of ``jaxbill._walls_checker`` (``HasCheckerFlight``)."""
+        return ReducedWallsFlight(planar=True)
 
     # == end of analysis block ============================================================

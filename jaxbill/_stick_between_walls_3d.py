@@ -32,9 +32,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _flat_walls as walls
-from ._scene import component
+from ._scene import SectionChart, chosen_section, component
 from ._step import components, stacked
 from ._validation import require_x64
+from ._wall_charts import WALLS_3D_CHART
+from ._walls_checker import ReducedWallsFlight
+from ._walls_sections import floor_state, reduced_wall_section
 
 # Tolerance on |u| = 1 and w . u = 0 in a given state (relative).
 UNIT_TOLERANCE = 1e-10
@@ -283,5 +286,37 @@ class StickBetweenWalls3D(eqx.Module):
         basis = jax.lax.stop_gradient(vt[2:].T)  # (6, 4) in (du, dw)
         turning = jnp.zeros((12, 4), state.dtype).at[3:6].set(basis[0:3]).at[9:12].set(basis[3:6])
         return jnp.concatenate([vertical, turning], axis=1)
+
+    # -- what the analyses ask (jaxbill._scene's capability protocols) ---------------------
+
+    sections: ClassVar[tuple[str, ...]] = ("reduced floor",)
+    area_preserving_section: ClassVar[str] = "reduced floor"
+    # The horizontal drift divides out (and, for a turning stick, the turn about the vertical).
+    periodic_symmetry: ClassVar[str] = "translation"
+
+    def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
+        """Section points ``(..., 2)`` at floor collisions, NaN elsewhere (``HasSection``; ``jb.reduced_wall_section``).
+
+        ``contacts`` ``(...)``, the collisions' contact codes, are needed: they say which wall was hit.
+        """
+        chosen_section(self, name)
+        if contacts is None:
+            raise ValueError("contacts: the reduced floor section needs the collisions' contact codes (Orbit.contact)")
+        return reduced_wall_section(self, states, contacts)
+
+    def section_state(self, point: jax.Array, energy=0.5, spin=0.0) -> jax.Array:
+        """The state just after a floor collision at ``point = (theta, p)``, shape ``(..., 2)``, at the
+        energy ``E'`` of the dynamical part and the spin ``I w_z`` (``jb.floor_state``)."""
+        point = jnp.asarray(point, dtype=jnp.float64)
+        return floor_state(self, point[..., 0], point[..., 1], energy, spin)
+
+    @property
+    def section_chart(self) -> SectionChart:
+        """The explorer's chart of the reduced floor section."""
+        return WALLS_3D_CHART
+
+    def checker_flight(self) -> ReducedWallsFlight:
+        """The reduced ``(z, psi)`` flight of ``jaxbill._walls_checker`` (``HasCheckerFlight``)."""
+        return ReducedWallsFlight(planar=False)
 
     # == end of analysis block ============================================================

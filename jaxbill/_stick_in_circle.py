@@ -20,8 +20,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._chaos import circle_shell_candidates
+from ._checker import ColumnFlight
 from ._first_root import RootBounds, first_smallest, select
-from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, component
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, SectionChart, chosen_section, component
+from ._sections import CIRCLE_CHART, birkhoff_section, paper_section, reduced_section, section_state
 from ._step import components, stacked, where
 from ._validation import (
     broadcast_parameters,
@@ -402,6 +405,46 @@ class StickInCircle(eqx.Module):
         """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
         state = jnp.asarray(state)
         return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+    # -- what the analyses ask (jaxbill._scene's capability protocols) ---------------------
+
+    sections: ClassVar[tuple[str, ...]] = ("reduced", "paper", "birkhoff")
+    area_preserving_section: ClassVar[str] = "reduced"
+    periodic_symmetry: ClassVar[str] = "rotation"  # turning the whole picture about the centre
+
+    def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
+        """Section points ``(..., 2)`` (``HasSection``): ``"reduced"`` (default, area-preserving at fixed
+        ``E, L``: ``jb.reduced_section``), ``"paper"`` (``jb.paper_section``) or ``"birkhoff"``
+        (``jb.birkhoff_section``, fixed walls only). ``contacts`` is not needed: the touching end
+        is the one with the smaller gap."""
+        del contacts
+        functions = {"reduced": reduced_section, "paper": paper_section, "birkhoff": birkhoff_section}
+        return functions[chosen_section(self, name)](self, states)
+
+    def section_state(self, point: jax.Array, energy=0.5, angular_momentum=0.0) -> jax.Array:
+        """The state ``(..., 6)`` just after a collision at the reduced section's ``point = (s, p)``,
+        shape ``(..., 2)``, at energy ``E`` and angular momentum ``L`` (``jb.section_state``)."""
+        point = jnp.asarray(point, dtype=jnp.float64)
+        return section_state(self, point[..., 0], point[..., 1], energy, angular_momentum)
+
+    @property
+    def section_chart(self) -> SectionChart:
+        """The explorer's chart of the reduced section."""
+        return CIRCLE_CHART
+
+    def checker_flight(self) -> ColumnFlight:
+        """The spiral column ``r <= b(theta - alpha)`` in ``(x, y, sqrt(I/M) alpha)`` (``HasCheckerFlight``)."""
+        turning = self.kind == "rotor"
+        scale = jnp.sqrt(self.inertia / self.mass) if turning else jnp.ones_like(self.R)
+        return ColumnFlight(
+            scene=self, scale=scale, length=self.R, reach=jnp.sqrt(self.R**2 - self.ell**2),
+            hessian_bound=jnp.ones_like(self.R), frozen=self.kind == "lens", single_sheet=self.kind == "circle",
+        )
+
+    def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):
+        """``count`` tries at Liouville-distributed states on the shell ``E`` (and ``L`` if given)
+        (``SamplesStates``): ``(states (k, 6), weights (k,))``, see ``jb.sample_energy_shell``."""
+        return circle_shell_candidates(self, rng, count, energy, angular_momentum, margin)
 
     # == end of analysis block ============================================================
 

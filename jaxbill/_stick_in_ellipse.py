@@ -53,8 +53,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._chaos import table_shell_candidates
+from ._checker import ColumnFlight
+from ._ellipse_sections import ELLIPSE_CHART, SECTIONS, ellipse_section, ellipse_section_state
 from ._first_root import RootBounds, first_smallest, select
-from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, component
+from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, SectionChart, chosen_section, component
 from ._smooth_table import EllipseTable
 from ._step import components, searched_contact_time, stacked, where
 from ._validation import (
@@ -501,6 +504,63 @@ class StickInEllipse(eqx.Module):
         """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
         state = jnp.asarray(state)
         return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
+
+
+    # -- what the analyses ask (jaxbill._scene's capability protocols) ---------------------
+
+    sections: ClassVar[tuple[str, ...]] = SECTIONS
+    # Area-preserving for the point (ell = 0); for a stick a projection (jaxbill._ellipse_sections).
+    area_preserving_section: ClassVar[str] = "birkhoff"
+    # No continuous symmetry: a periodic orbit closes in every coordinate.
+    periodic_symmetry: ClassVar[str] = "none"
+    # The state's angles, compared modulo 2 pi when an orbit closes.
+    periodic_angles: ClassVar[tuple[int, ...]] = (2,)
+
+    def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
+        """Section points ``(..., 2)`` of states ``(..., 6)`` at collisions (``HasSection``).
+
+        ``"birkhoff"`` (default): ``[s, p]``, the arc length of the touching
+        end's contact from ``(a, 0)`` and its tangential momentum
+        ``sqrt(M) v_t / sqrt(2E)``; area-preserving for a point (``ell = 0``).
+        ``"angle"``: ``[t, p]`` with the parameter angle ``t`` of the contact,
+        ``P = (a cos t, b sin t)``. ``contacts`` (``Orbit.contact``) name the
+        touching end; without them, the end with the smaller gap.
+        See ``jaxbill._ellipse_sections``.
+        """
+        return ellipse_section(self, states, contacts, chosen_section(self, name))
+
+    def section_state(self, point: jax.Array, energy=0.5, arm_angle=0.0, spin=0.0) -> jax.Array:
+        """The state ``(..., 6)`` just after end P1 hits the wall at the Birkhoff section's ``point = (s, p)``,
+        shape ``(..., 2)``: energy ``E``, the stick at ``arm_angle`` (radians) from the outward normal, spin
+        ``omega``; NaN where none exists (``jaxbill._ellipse_sections.ellipse_section_state``)."""
+        point = jnp.asarray(point, dtype=jnp.float64)
+        return ellipse_section_state(self, point[..., 0], point[..., 1], energy, arm_angle, spin)
+
+    @property
+    def section_chart(self) -> SectionChart:
+        """The explorer's chart of the Birkhoff section (P1 on the wall, stick along the normal, no spin)."""
+        return ELLIPSE_CHART
+
+    def checker_flight(self) -> ColumnFlight:
+        """The column ``g_k(x, y, z / sqrt(I/M)) >= 0`` in ``(x, y, z = sqrt(I/M) alpha)`` (``HasCheckerFlight``).
+
+        The gaps' Hessian in the contact point is ``-2 D``, ``|D| = max(a, b) / min(a, b)``; the centre
+        of a stick with both ends inside the convex table is inside it, ``|c| <= max(a, b)``.
+        """
+        turning = self.kind == "rotor"
+        scale = jnp.sqrt(self.inertia / self.mass) if turning else jnp.ones_like(self.a)
+        major, minor = jnp.maximum(self.a, self.b), jnp.minimum(self.a, self.b)
+        return ColumnFlight(
+            scene=self, scale=scale, length=major, reach=major, hessian_bound=major / minor,
+            frozen=self.kind == "static", single_sheet=self.kind == "point",
+        )
+
+    def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):
+        """``count`` tries at Liouville-distributed states of energy ``E`` (``SamplesStates``): the
+        ``(states (k, 6), weights (k,))`` with both ends inside by ``margin ab`` (``jb.sample_energy_shell``
+        loops over it). No angular momentum is conserved: ``angular_momentum`` must be None."""
+        box = (float(self.a), float(self.b))
+        return table_shell_candidates(self, rng, count, energy, angular_momentum, margin, box=box)
 
 
 def _direction(kind: str, alpha):

@@ -14,7 +14,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._scene import WALL_TOLERANCE
+# Relative tolerance on a contact gap (in units of ``Scene.gap_scale``): an end
+# this far outside a wall is "through the wall"; this close to it, "on the wall".
+# Defined here, where the checks use it; ``jaxbill._scene`` re-exports it.
+WALL_TOLERANCE = 1e-12
 
 # Counts of collisions whose per-collision results are kept (an orbit's states,
 # a checker's collisions, seeds): 2**31 - 1 of them would already take 100 GB.

@@ -121,8 +121,6 @@ import optimistix as optx
 
 from ._checker import CheckFlag, CheckResult, _certified_positive, _comparison_report, _first, _wrap
 from ._collision import orbit as _orbit
-from ._stick_between_walls_2d import StickBetweenWalls2D
-from ._stick_between_walls_3d import StickBetweenWalls3D
 from ._validation import MAX_STORED_COUNT, check_count
 
 __all__ = ["check_walls"]
@@ -544,6 +542,26 @@ def _perturbations(state0: np.ndarray, planar_scene: bool, eps, scales) -> np.nd
 # ---------------------------------------------------------------------------
 # the checker
 # ---------------------------------------------------------------------------
+# The options of ``jb.check`` that this checker shares; the others keep its defaults.
+_SHARED_OPTIONS = ("tol", "graze_tol", "max_steps", "corner_tol", "solver")
+
+
+class ReducedWallsFlight(eqx.Module):
+    """The flight of the sticks between walls that ``check_walls`` integrates (``HasCheckerFlight``).
+
+    The reduced ``(z, psi)`` billiard with its centrifugal potential (the
+    module docstring); ``planar``: the 2D scene (state ``(6,)``), else the 3D
+    one (state ``(12,)``).
+    """
+
+    planar: bool = eqx.field(static=True)
+
+    def check(self, scene, state0, n: int, **options) -> CheckResult:
+        """``check_walls`` with the options of ``jb.check`` it shares (``solver=None``: its own default)."""
+        shared = {name: options[name] for name in _SHARED_OPTIONS if options.get(name) is not None}
+        return check_walls(scene, state0, n, **shared)
+
+
 def check_walls(
     scene,
     state0,
@@ -609,11 +627,13 @@ def check_walls(
         recorded with kinds ``"local <kind>"``.
     """
     start = time.perf_counter()
-    if not isinstance(scene, (StickBetweenWalls2D, StickBetweenWalls3D)):
-        raise TypeError(f"check_walls takes a StickBetweenWalls2D or 3D, not {type(scene).__name__}")
+    flight = scene.checker_flight() if hasattr(scene, "checker_flight") else None
+    if not isinstance(flight, ReducedWallsFlight):
+        raise TypeError(f"check_walls takes a scene whose checker flight is a ReducedWallsFlight "
+                        f"(StickBetweenWalls2D or 3D), not {type(scene).__name__}")
     n = check_count("n", n, 1, "number of collisions", MAX_STORED_COUNT)
-    planar_scene = isinstance(scene, StickBetweenWalls2D)
-    size = 6 if planar_scene else 12
+    planar_scene = flight.planar
+    size = scene.state_size
     dtype = state0.dtype if hasattr(state0, "dtype") else np.asarray(state0).dtype
     if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
         raise ValueError(f"state0 must be real numbers; got dtype {dtype}")

@@ -25,6 +25,8 @@ from matplotlib.backend_bases import MouseButton, MouseEvent  # noqa: E402
 
 import jaxbill as jb  # noqa: E402
 from jaxbill import _explorer  # noqa: E402
+from jaxbill._sections import CIRCLE_CHART  # noqa: E402
+from jaxbill._wall_charts import WALLS_2D_CHART  # noqa: E402
 
 SMALL = dict(survey_orbits=8, survey_collisions=200, click_collisions=400, chunk=100)
 
@@ -34,6 +36,7 @@ SCENES = {
     "circle": lambda: jb.StickInCircle(R=2.0, ell=0.0),
     "walls2d": lambda: jb.StickBetweenWalls2D(h=3.0, ell=1.0),
     "walls3d": lambda: jb.StickBetweenWalls3D(h=3.0, ell=1.0),
+    "ellipse": lambda: jb.StickInEllipse(a=2.0, b=1.3, ell=0.5),
 }
 
 
@@ -212,8 +215,8 @@ def test_a_scene_can_bring_its_own_chart():
         pass
 
     scene = Tagged(h=3.0, ell=1.0)
-    assert _explorer.section_chart(scene) is _explorer.WALLS_2D_CHART
-    own = _explorer.CIRCLE_CHART
+    assert _explorer.section_chart(scene) is WALLS_2D_CHART
+    own = CIRCLE_CHART
 
     class WithChart:
         section_chart = own
