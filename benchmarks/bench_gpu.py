@@ -14,7 +14,10 @@ kernel has no ellipse), for each batch size, in this one process:
 - ``jb.run(..., driver="lanes")``: the XLA state machine, final states;
 - ``jb.run(..., record="states", every=100)`` (the lanes driver: Pallas records no states);
 - ``jb.orbit`` of the batch (every state recorded; lanes driver), at the smallest size only;
-- for scale, ``jb.run(..., driver="lockstep")`` at the smallest size.
+- for scale, ``jb.run(..., driver="lockstep")`` at the smallest size;
+- tangent collisions: ``jaxbill._pallas.pallas_fli`` (one tangent vector carried
+  in the kernel, as ``jb.fli_map`` runs on a GPU), against the plain kernel;
+- a 1024 x 1024 FLI map of 1000 collisions (``jb.fli_map``) on the lens's section.
 
 Compile times are printed apart (the first call of each); timings are medians
 of ``--rounds`` calls in alternation. Ratios are collisions per second over
@@ -66,11 +69,11 @@ def main():
               f"{[d.platform for d in jax.devices()]}); nothing to measure. Run it on a machine with a CUDA GPU.")
         return 0
 
-    import jaxbill as jb  # noqa: PLC0415 (after the GPU check: importing sets XLA options)
+    import jaxbill as jb
 
     sys.path.insert(0, HERE)
-    import numba_baseline as baseline  # noqa: PLC0415
-    import numba_cuda_baseline as cuda_baseline  # noqa: PLC0415
+    import numba_baseline as baseline
+    import numba_cuda_baseline as cuda_baseline
 
     n = args.collisions
     device = jax.devices()[0]
@@ -104,7 +107,9 @@ def main():
             peer = None
             if params is not None:
                 result = []
-                first, median = timed(lambda: result.append(cuda_baseline.run_batch_cuda(params, states, n)), args.rounds)
+                first, median = timed(
+                    lambda: result.append(cuda_baseline.run_batch_cuda(params, states, n)), args.rounds
+                )
                 peer = collisions / median
                 steps = result[-1][3].sum() / max(result[-1][2].sum(), 1)
                 rows.append(("numba CUDA kernel", first, median))
@@ -115,18 +120,44 @@ def main():
             }
             if orbits == min(args.orbits):
                 contenders["jb.orbit (every state)"] = lambda: jax.block_until_ready(jb.orbit(scene, states, n).state)
-                contenders["jb.run final, lockstep"] = lambda: jb.run(scene, states, n, driver="lockstep", progress=False)
+                contenders["jb.run final, lockstep"] = lambda: jb.run(
+                    scene, states, n, driver="lockstep", progress=False
+                )
+            if hasattr(scene, "dynamical_indices"):  # the kernel's tangent lives in state coordinates
+                from jaxbill import _pallas  # noqa: PLC0415
+
+                tangents = np.zeros_like(states)
+                dynamical = list(scene.dynamical_indices)
+                tangents[:, dynamical] = 1.0 / np.sqrt(len(dynamical))
+                device_states, device_tangents = jax.numpy.asarray(states), jax.numpy.asarray(tangents)
+                fli = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, n)[0])
+                contenders["tangent collisions (pallas_fli)"] = lambda: jax.block_until_ready(
+                    fli(device_states, device_tangents))
             for name, function in contenders.items():
                 rows.append((name, *timed(function, args.rounds)))
             for name, first, median in rows:
                 ratio = f"{collisions / median / peer:.2f}" if peer else "n/a"
                 print(f"| {label} | {orbits} | {name} | {first:.2f} | {median:.4f} | {collisions / median:.3g} "
                       f"| {ratio} | {steps:.2f} |")
+    fli_map_timing(jb, args.rounds)
     return 0
 
 
+def fli_map_timing(jb, rounds, side=1024, collisions=1000):
+    """A ``side`` x ``side`` FLI map on the lens's section (the GPU path of ``jb.fli_map``)."""
+    scene = jb.StickInCircle(2.0, 1.5, inertia=float("inf"))
+    length = float(jb.wall_length(scene))
+    s, p = np.meshgrid(np.linspace(0.0, length, side, endpoint=False), np.linspace(-0.95, 0.95, side))
+    grid = np.asarray(jb.section_state(scene, s, p, energy=0.5))
+    first, median = timed(lambda: jb.fli_map(scene, grid, collisions, chunk=side * side), rounds)
+    print()
+    print(f"FLI map {side} x {side}, {collisions} collisions, lens R=2 ell=1.5: first call {first:.2f} s, "
+          f"then median {median:.3f} s ({side * side * collisions / median:.3g} tangent collisions/s)")
+    return grid
+
+
 def _ellipse_states(count, seed=5):
-    import jaxbill as jb  # noqa: PLC0415
+    import jaxbill as jb
 
     rng = np.random.default_rng(seed)
     radius, angle = 0.3 * np.sqrt(rng.uniform(size=count)), rng.uniform(-np.pi, np.pi, count)
