@@ -26,6 +26,12 @@ into ``out_dir``:
   straight, the polar angle folded at the vertical) and a 3D stick spinning
   about the vertical (curved, kept off the vertical by ``L_z^2 / (2 I sin^2
   theta)``);
+* ``ellipse.png``: the stick in an ellipse (``a = 2, b = 1.3``): one
+  trajectory of a stick (``ell = 0.6``) with the stick drawn at its contacts,
+  the point's Birkhoff section ``(s, p)`` (area-preserving; the elliptic
+  billiard is integrable, so every orbit draws a curve) and the stick's
+  ``(s, p)`` of the touching end (a projection); recorded under
+  ``"ellipse"``;
 * ``summary.json`` and ``summary.txt``: every panel's parameters, orbit and
   collision counts, worst invariant drifts, chaotic fraction, start states
   (json), timings. The wall scenes' panels are under ``"walls"`` (not
@@ -77,14 +83,16 @@ import time
 import numpy as np
 from matplotlib.figure import Figure
 
+from . import _walls_sections as ws
 from . import plotting
 from ._collision import orbit as run_orbit
-from . import _walls_sections as ws
+from ._ellipse_sections import draw_ellipse_orbit, ellipse_length
 from ._section_measures import CHAOTIC_DIVERGENCE, count_islands, curve_thickness, divergence, twin_states
 from ._sections import half_corner_angle, paper_section, reduced_section, section_seeds, section_state
 from ._stick_between_walls_2d import StickBetweenWalls2D
 from ._stick_between_walls_3d import StickBetweenWalls3D
 from ._stick_in_circle import StickInCircle
+from ._stick_in_ellipse import StickInEllipse
 
 ENERGY = 0.5
 ANGULAR_MOMENTUM = 0.0
@@ -104,6 +112,11 @@ FILES = (
 # Written too, recorded under summary["walls"]: the stick between two flat walls.
 WALLS_FILES = ("walls_sections.png", "walls_3d_flights.png")
 WALLS_ELL = 1.0
+# Written too, recorded under summary["ellipse"]: the stick in an ellipse.
+ELLIPSE_FILES = ("ellipse.png",)
+ELLIPSE_AXES = (2.0, 1.3)
+ELLIPSE_ELL = 0.6
+ELLIPSE_STATE = (0.1, 0.2, 0.3, 0.7, -0.4, 0.9)
 WALLS_ENERGY = 0.5  # E': the energy without the (absent) horizontal motion
 
 
@@ -126,13 +139,17 @@ class Settings:
     walls_spin: float = 0.6  # I w_z of the 3D row, in units of sqrt(2 I E')
     walls_flight_h: float = 3.0
     walls_flight_collisions: int = 12
+    ellipse_trajectory_collisions: int = 30
+    ellipse_orbits: int = 24
+    ellipse_collisions: int = 2_000
     dpi: int = 150
     quick: bool = False
 
     @classmethod
-    def quick_settings(cls) -> "Settings":
+    def quick_settings(cls) -> Settings:
         return cls(fig2_collisions=600, section_orbits=6, section_collisions=300, lens_orbits=6,
-                   lens_collisions=300, walls_orbits=6, walls_collisions=300, dpi=60, quick=True)
+                   lens_collisions=300, walls_orbits=6, walls_collisions=300, ellipse_orbits=6,
+                   ellipse_collisions=300, dpi=60, quick=True)
 
 
 # Fig. 2's two orbits, as section points (s, p) at ell = 1.9, E = 1/2, L = 0:
@@ -459,6 +476,56 @@ def _walls_figures(settings: Settings, save, bar) -> list:
     return out
 
 
+def _ellipse_figures(settings: Settings, save, bar) -> list:
+    """``ellipse.png``: a stick's trajectory, the point's Birkhoff section and the stick's; records for
+    ``summary["ellipse"]`` (every section orbit starts on its section, ``E = 1/2``, P1 on the wall)."""
+    t0 = time.perf_counter()
+    a, b = ELLIPSE_AXES
+    stick = StickInEllipse(a=a, b=b, ell=ELLIPSE_ELL)
+    point = StickInEllipse(a=a, b=b, ell=0.0)
+    state0 = np.asarray(ELLIPSE_STATE)
+    trajectory = run_orbit(stick, state0, settings.ellipse_trajectory_collisions)
+    count, n = settings.ellipse_orbits, settings.ellipse_collisions
+    # Seeds along the middle of the section's s axis, p from -0.95 to 0.95.
+    length = float(ellipse_length(point))
+    seeds_p = np.linspace(-0.95, 0.95, count)
+    seeds = np.stack([np.full(count, 0.3 * length), seeds_p], axis=-1)
+    records, panels = [], []
+    for label, scene in (("point (ell = 0)", point), (f"stick (ell = {ELLIPSE_ELL:g}, I = M ell^2)", stick)):
+        states0 = np.asarray(scene.section_state(seeds, energy=ENERGY))
+        orb = run_orbit(scene, states0, n)
+        points = np.asarray(scene.section(orb.state, orb.contact))
+        energies = np.asarray(scene.energy(orb.state))
+        e0 = np.asarray(scene.energy(states0))[:, None]
+        records.append({"label": label, "scene": {"a": a, "b": b, "ell": float(scene.ell), "kind": scene.kind,
+                                                  "inertia": float(scene.inertia), "mass": float(scene.mass)},
+                        "orbits": count, "collisions_per_orbit": n, "collisions": count * n,
+                        "energy_drift": float(np.max(np.abs(energies / e0 - 1.0))), "energy": ENERGY})
+        panels.append((label, points))
+    fig = Figure(figsize=(15, 4.8), layout="constrained")
+    ax_orbit, *ax_sections = fig.subplots(1, 3)
+    one = type(trajectory)(t=np.asarray(trajectory.t), contact=np.asarray(trajectory.contact),
+                           state=np.asarray(trajectory.state))
+    draw_ellipse_orbit(ax_orbit, stick, state0, one, "tab:blue")
+    ax_orbit.set_title(f"stick, a = {a:g}, b = {b:g}, ell = {ELLIPSE_ELL:g}: "
+                       f"{settings.ellipse_trajectory_collisions} collisions")
+    colors = plotting.orbit_colors(count)
+    for ax, (_label, points) in zip(ax_sections, panels):
+        for k in range(count):
+            ax.plot(points[k, :, 0], points[k, :, 1], ".", color=colors[k], ms=1.0)
+        ax.set_xlim(0.0, length)
+        ax.set_ylim(-1.02, 1.02)
+        ax.set_xlabel("s: arc length of the contact from (a, 0) (length)")
+        ax.set_ylabel(r"$p = \sqrt{M}\,v_t/\sqrt{2E}$")
+    ax_sections[0].set_title("point: Birkhoff section (area-preserving; integrable)")
+    ax_sections[1].set_title("stick: the touching end's (s, p), a projection")
+    fig.suptitle(f"Stick in an ellipse: {count} orbits x {n} collisions per section, E = 1/2")
+    path = save(fig, ELLIPSE_FILES[0])
+    bar.advance("ellipse")
+    return [{"name": "ellipse", "file": path, "panels": records, "seconds": time.perf_counter() - t0,
+             "description": "stick in an ellipse: one trajectory, the point's Birkhoff section, the stick's"}]
+
+
 def _embed_2d(states2d) -> np.ndarray:
     """2D ``[x, z, th, vx, vz, om]`` as 3D states in the ``x``-``z`` plane."""
     x, z, th, vx, vz, om = np.moveaxis(np.asarray(states2d, dtype=np.float64), -1, 0)
@@ -480,7 +547,7 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     if settings is None:
         settings = Settings.quick_settings() if quick else Settings()
     os.makedirs(out_dir, exist_ok=True)
-    steps = 10
+    steps = 11
     bar = Progress(steps, progress)
     bar.show("starting (compiling the collision map)")
     started = time.perf_counter()
@@ -614,6 +681,7 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     bar.advance("reduced vs projected")
 
     walls_figures = _walls_figures(settings, save, bar)
+    ellipse_figures = _ellipse_figures(settings, save, bar)
 
     all_panels = [p for f in figures for p in f["panels"]]
     summary = {
@@ -628,6 +696,7 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
                                 for p in f["panels"]),
         "figures": figures,
         "walls": walls_figures,
+        "ellipse": ellipse_figures,
         "walls_worst_energy_drift": max((p["energy_drift"] for f in walls_figures for p in f["panels"]), default=None),
         "walls_worst_momentum_drift": max((p["momentum_drift"] for f in walls_figures for p in f["panels"]),
                                           default=None),
@@ -689,4 +758,9 @@ def summary_text(summary: dict) -> str:
                   "of the chaotic ones (per collision).", ""]
         for figure in summary["walls"]:
             lines.append(f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)")
+    for figure in summary.get("ellipse", []):
+        lines += ["", f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)"]
+        for panel in figure["panels"]:
+            lines.append(f"  {panel['label']:<34} {panel['orbits']:>4} orbits x {panel['collisions_per_orbit']} "
+                         f"collisions, dE/E {panel['energy_drift']:.1e}")
     return "\n".join(lines) + "\n"

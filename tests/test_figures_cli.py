@@ -21,7 +21,7 @@ import pytest
 
 import jaxbill as jb
 from jaxbill import cli
-from jaxbill._figures import FILES, WALLS_FILES
+from jaxbill._figures import ELLIPSE_FILES, FILES, WALLS_FILES
 
 
 @pytest.fixture(scope="module")
@@ -167,6 +167,20 @@ def _walls_twins(scene, states0, delta):
         twins[:, 5] = c * rate - s * eta_dot
         twins[:, 4] = kappa * (s * rate + c * eta_dot)
     return twins
+
+
+def test_ellipse_figure_is_written(quick_run):
+    """``ellipse.png`` and its record: the energy, the ellipse's only invariant, kept to rounding."""
+    out, summary = quick_run
+    assert [figure["file"] for figure in summary["ellipse"]] == list(ELLIPSE_FILES)
+    path = out / ELLIPSE_FILES[0]
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 1000
+    assert ELLIPSE_FILES[0] in (out / "summary.txt").read_text()
+    panels = summary["ellipse"][0]["panels"]
+    assert [panel["scene"]["kind"] for panel in panels] == ["point", "rotor"]
+    for panel in panels:
+        assert panel["collisions"] == panel["orbits"] * panel["collisions_per_orbit"] > 0
+        assert panel["energy_drift"] < 1e-12
 
 
 def test_walls_figures_are_written(quick_run):
