@@ -151,7 +151,7 @@ def sample_energy_shell(
     if draw is None:
         raise TypeError(
             f"scene: {type(scene).__name__} cannot draw states on an energy shell (no sample_states: "
-            "the SamplesStates protocol of jaxbill._scene)"
+            "the SamplesStates protocol of jaxbill._scene; the stick in a circle and in an ellipse have one)"
         )
     rng = np.random.default_rng(seed)
     states, weights = [], []
