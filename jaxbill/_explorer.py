@@ -239,6 +239,10 @@ class Explorer:
         self._survey_lines = []
         self._edge_lines = []
         self._section_points = eqx.filter_jit(self.chart.points)
+        # One chunk of a batch, compiled whole: jb.orbit's eager checks and its split over
+        # devices cost more than the chunk itself. Starts come from the chart (valid, or NaN
+        # and left out); under jit an invalid lane would be NaN, which ends its drawing.
+        self._run_chunk = eqx.filter_jit(lambda scene, states: orbit(scene, states, self.chunk))
 
         self.figure = plt.figure(figsize=(13.0, 7.2))
         figure = self.figure
@@ -466,7 +470,7 @@ class Explorer:
         batch = np.concatenate([states, np.repeat(states[:1], self.survey_orbits - count, axis=0)])
         done = 0
         while done < collisions:
-            orb = orbit(self.scene, batch, self.chunk)
+            orb = self._run_chunk(self.scene, batch)
             points = np.asarray(self._section_points(self.scene, orb.state, orb.contact))
             keep = min(self.chunk, collisions - done)
             yield (Orbit(t=np.asarray(orb.t[:count]), contact=np.asarray(orb.contact[:count]),
