@@ -122,8 +122,16 @@ def scipy_orbit(R, ell, inertia, q0, n, rtol=1e-12, atol=1e-12, step_frac=0.1):
     for i in range(n):
         speed = math.hypot(q[3], q[4]) + ell * abs(q[5])
         horizon = 100.0 * (2.0 * R) / speed  # far beyond any free flight
-        sol = solve_ivp(_rhs, (t0, t0 + horizon), q, method="DOP853", rtol=rtol,
-                        atol=atol, events=events, max_step=step_frac * R / speed)
+        sol = solve_ivp(
+            _rhs,
+            (t0, t0 + horizon),
+            q,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+            events=events,
+            max_step=step_frac * R / speed,
+        )
         nsteps += sol.t.size - 1
         if sol.status != 1:
             raise RuntimeError(f"scipy loop: no collision found at collision {i}")
@@ -175,8 +183,9 @@ def time_jaxbill(jb, jax, scene, x, n, repeats):
     return first, runs, bad
 
 
-def bench_scene_batch(jb, jax, scene, x, repeats, n_fixed=None, target_s=1.0,
-                      pilot_collisions=100_000, max_collisions=20_000_000):
+def bench_scene_batch(
+    jb, jax, scene, x, repeats, n_fixed=None, target_s=1.0, pilot_collisions=100_000, max_collisions=20_000_000
+):
     """Time jb.orbit on the batch x. Unless n_fixed is given, a pilot run (small n)
     measures the rate and n is chosen so that one steady run takes ~target_s."""
     B = 1 if x.ndim == 1 else x.shape[0]
@@ -191,8 +200,7 @@ def bench_scene_batch(jb, jax, scene, x, repeats, n_fixed=None, target_s=1.0,
         n = n_fixed
     first, runs, bad = time_jaxbill(jb, jax, scene, x, n, repeats)
     med = statistics.median(runs)
-    return dict(B=B, n=n, first=first, runs=runs, med=med, compile=first - med,
-                rate=B * n / med, pilot=pilot, bad=bad)
+    return dict(B=B, n=n, first=first, runs=runs, med=med, compile=first - med, rate=B * n / med, pilot=pilot, bad=bad)
 
 
 def R_ell(scene):
@@ -272,15 +280,13 @@ def machine_info(jax):
     lines = [
         "## Machine",
         "",
-        f"- python {platform.python_version()}, numpy {np.__version__}, "
-        f"scipy {__import__('scipy').__version__}",
+        f"- python {platform.python_version()}, numpy {np.__version__}, scipy {__import__('scipy').__version__}",
         f"- jax {jax.__version__}, jaxlib {__import__('jaxlib').__version__}, "
         f"backend {jax.default_backend()}, devices {[str(d) for d in devs]}",
         f"- device kind: {devs[0].device_kind}",
         f"- CPU: {cpu}; os.cpu_count() = {os.cpu_count()}, usable cores = {avail}",
         f"- platform: {platform.platform()}",
-        f"- jax_enable_x64 = {jax.config.read('jax_enable_x64')}, "
-        f"XLA_FLAGS = {os.environ.get('XLA_FLAGS', '')!r}",
+        f"- jax_enable_x64 = {jax.config.read('jax_enable_x64')}, XLA_FLAGS = {os.environ.get('XLA_FLAGS', '')!r}",
     ]
     return "\n".join(lines)
 
@@ -288,8 +294,9 @@ def machine_info(jax):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fast smoke version (< 1 min)")
-    ap.add_argument("--repeats", type=int, default=None,
-                    help="timed steady-state runs per configuration (default 5, quick 2)")
+    ap.add_argument(
+        "--repeats", type=int, default=None, help="timed steady-state runs per configuration (default 5, quick 2)"
+    )
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     quick = args.quick
@@ -300,15 +307,17 @@ def main(argv=None):
 
     import jax
     import jax.numpy as jnp
+
     import jaxbill as jb  # enables float64
 
-    print("# jaxbill collision benchmark" + (" (--quick: small n, timings are noisy)" if quick
-                                              else ""))
+    print("# jaxbill collision benchmark" + (" (--quick: small n, timings are noisy)" if quick else ""))
     print()
     print(machine_info(jax))
     load0 = os.getloadavg()
-    print(f"- load average at start (1/5/15 min): {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}"
-          " (other processes on the cores make every number below smaller)")
+    print(
+        f"- load average at start (1/5/15 min): {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}"
+        " (other processes on the cores make every number below smaller)"
+    )
     print()
     sys.stdout.flush()
 
@@ -324,11 +333,12 @@ def main(argv=None):
         for B in BATCHES:
             states0 = random_states(R, ell, inertia, B, seed=args.seed + 1000 * si + B)
             x = jnp.asarray(states0[0] if B == 1 else states0)
-            r = bench_scene_batch(jb, jax, scene, x, repeats,
-                                  n_fixed=quick_n[B] if quick else None)
+            r = bench_scene_batch(jb, jax, scene, x, repeats, n_fixed=quick_n[B] if quick else None)
             results[label, B] = r
-            progress(f"{label:24s} B={B:<6d} n={r['n']:<7d} compile {r['compile']:.2f}s, "
-                     f"steady {r['med']:.3f}s, {fmt_rate(r['rate'])} coll/s")
+            progress(
+                f"{label:24s} B={B:<6d} n={r['n']:<7d} compile {r['compile']:.2f}s, "
+                f"steady {r['med']:.3f}s, {fmt_rate(r['rate'])} coll/s"
+            )
         # scipy loop on one orbit, from the same initial state as jaxbill's B = 1 run
         q0 = random_states(R, ell, inertia, 1, seed=args.seed + 1000 * si + 1)[0]
         ts, ks, qs, _ = scipy_orbit(R, ell, inertia, q0, acc_n)
@@ -342,50 +352,63 @@ def main(argv=None):
     # ---------------- tables ----------------
     print("## jb.orbit throughput (float64)")
     print()
-    print(f"Steady state = median of {repeats} runs after the first (compiling) call; "
-          "compile = first call - steady median (JAX caches cleared before each first call). "
-          "collisions/run = B * n; n chosen from a pilot run so that one run takes ~1 s"
-          + (" (--quick: fixed small n)" if quick else "") + ". B = 1 passes state0 of "
-          "shape (6,), B > 1 shape (B, 6). 'stalled' = orbits whose last contact is 0 "
-          "(no collision found, or NaN-poisoned by the library).")
+    print(
+        f"Steady state = median of {repeats} runs after the first (compiling) call; "
+        "compile = first call - steady median (JAX caches cleared before each first call). "
+        "collisions/run = B * n; n chosen from a pilot run so that one run takes ~1 s"
+        + (" (--quick: fixed small n)" if quick else "")
+        + ". B = 1 passes state0 of "
+        "shape (6,), B > 1 shape (B, 6). 'stalled' = orbits whose last contact is 0 "
+        "(no collision found, or NaN-poisoned by the library)."
+    )
     print()
-    print("| scene | B | n per orbit | collisions/run | compile (s) | steady median (s) "
-          "| min-max (s) | stalled | collisions/s |")
+    print(
+        "| scene | B | n per orbit | collisions/run | compile (s) | steady median (s) "
+        "| min-max (s) | stalled | collisions/s |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, *_ in SCENES:
         for B in BATCHES:
             r = results[label, B]
-            print(f"| {label} | {B} | {r['n']} | {B * r['n']:.3g} | {r['compile']:.2f} | "
-                  f"{r['med']:.3f} | {min(r['runs']):.3f}-{max(r['runs']):.3f} | {r['bad']} | "
-                  f"**{fmt_rate(r['rate'])}** |")
+            print(
+                f"| {label} | {B} | {r['n']} | {B * r['n']:.3g} | {r['compile']:.2f} | "
+                f"{r['med']:.3f} | {min(r['runs']):.3f}-{max(r['runs']):.3f} | {r['bad']} | "
+                f"**{fmt_rate(r['rate'])}** |"
+            )
     print()
     print("## scipy solve_ivp loop, one orbit")
     print()
-    print("DOP853, rtol = atol = 1e-12, events g_k = R^2 - |P_k|^2 (terminal, direction -1), "
-          "max_step = 0.1 R / (|v| + ell |omega|) so no step jumps over an exit and re-entry; "
-          "impulse applied at each event, then restart. Same initial state as jaxbill's B = 1 "
-          f"run. Accuracy over the first {acc_n} collisions: 'per flight' restarts jb.collide "
-          "from each scipy post-collision state and compares the flight time (and contact "
-          "end); 'dt error' is each side's flight time minus the contact end's gap root "
-          "found with mpmath at 40 digits from the same scipy state; 'orbit' compares the "
-          "absolute collision times of jb.orbit and scipy, which part at the Lyapunov rate, "
-          "so it says for how many collisions they agree to 1e-9. "
-          f"Speed: median of {scipy_rep} run(s) of {scipy_n} collisions.")
+    print(
+        "DOP853, rtol = atol = 1e-12, events g_k = R^2 - |P_k|^2 (terminal, direction -1), "
+        "max_step = 0.1 R / (|v| + ell |omega|) so no step jumps over an exit and re-entry; "
+        "impulse applied at each event, then restart. Same initial state as jaxbill's B = 1 "
+        f"run. Accuracy over the first {acc_n} collisions: 'per flight' restarts jb.collide "
+        "from each scipy post-collision state and compares the flight time (and contact "
+        "end); 'dt error' is each side's flight time minus the contact end's gap root "
+        "found with mpmath at 40 digits from the same scipy state; 'orbit' compares the "
+        "absolute collision times of jb.orbit and scipy, which part at the Lyapunov rate, "
+        "so it says for how many collisions they agree to 1e-9. "
+        f"Speed: median of {scipy_rep} run(s) of {scipy_n} collisions."
+    )
     print()
-    print("| scene | per flight: max abs dt error, scipy | same, jaxbill "
-          "| per flight: max abs dt diff | contact mismatches | orbit: max abs t diff, "
-          "first 10 | orbit: collisions agreeing to 1e-9 | solver steps/collision "
-          "| scipy coll/s | jaxbill B=1 / scipy | jaxbill best batch / scipy |")
+    print(
+        "| scene | per flight: max abs dt error, scipy | same, jaxbill "
+        "| per flight: max abs dt diff | contact mismatches | orbit: max abs t diff, "
+        "first 10 | orbit: collisions agreeing to 1e-9 | solver steps/collision "
+        "| scipy coll/s | jaxbill B=1 / scipy | jaxbill best batch / scipy |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, *_ in SCENES:
         sr = scipy_res[label]
         a = sr["acc"]
         single = results[label, 1]["rate"]
         best = max(results[label, B]["rate"] for B in BATCHES)
-        print(f"| {label} | {fmt_e(a['err_scipy'])} | {fmt_e(a['err_jaxbill'])} "
-              f"| {fmt_e(a['flight'])} | {a['flight_contact_mismatch']} | "
-              f"{fmt_e(a['traj10'])} | {a['agree']} of {acc_n} | {sr['steps']:.1f} | "
-              f"{fmt_rate(sr['rate'])} | {single / sr['rate']:.0f}x | {best / sr['rate']:.0f}x |")
+        print(
+            f"| {label} | {fmt_e(a['err_scipy'])} | {fmt_e(a['err_jaxbill'])} "
+            f"| {fmt_e(a['flight'])} | {a['flight_contact_mismatch']} | "
+            f"{fmt_e(a['traj10'])} | {a['agree']} of {acc_n} | {sr['steps']:.1f} | "
+            f"{fmt_rate(sr['rate'])} | {single / sr['rate']:.0f}x | {best / sr['rate']:.0f}x |"
+        )
     print()
     print("## Targets")
     print()
@@ -396,27 +419,38 @@ def main(argv=None):
         ok = "yes" if value >= target else "**NO**"
         print(f"| {name} | {label} | {fmt_rate(value)}{unit} | {ok} |")
 
-    for label, R, ell, inertia in SCENES:
+    for label, _, ell, inertia in SCENES:
         if inertia is None and ell == 1.9:
-            row(f">= {TARGET_ROTOR_BATCH:.0e} coll/s, B=16384", label,
-                results[label, 16384]["rate"], TARGET_ROTOR_BATCH)
-    for label, R, ell, inertia in SCENES:
+            row(
+                f">= {TARGET_ROTOR_BATCH:.0e} coll/s, B=16384", label, results[label, 16384]["rate"], TARGET_ROTOR_BATCH
+            )
+    for label, _, _, inertia in SCENES:
         if inertia is not None:
-            row(f">= {TARGET_LENS_BATCH:.0e} coll/s, B=16384", label,
-                results[label, 16384]["rate"], TARGET_LENS_BATCH)
+            row(f">= {TARGET_LENS_BATCH:.0e} coll/s, B=16384", label, results[label, 16384]["rate"], TARGET_LENS_BATCH)
     for label, *_ in SCENES:
-        row(f">= {TARGET_SINGLE:.0e} coll/s, single orbit", label, results[label, 1]["rate"],
-            TARGET_SINGLE)
+        row(f">= {TARGET_SINGLE:.0e} coll/s, single orbit", label, results[label, 1]["rate"], TARGET_SINGLE)
     for label, *_ in SCENES:
-        row(f">= {TARGET_SCIPY_RATIO:.0f}x scipy loop, single orbit", label,
-            results[label, 1]["rate"] / scipy_res[label]["rate"], TARGET_SCIPY_RATIO, "x")
+        row(
+            f">= {TARGET_SCIPY_RATIO:.0f}x scipy loop, single orbit",
+            label,
+            results[label, 1]["rate"] / scipy_res[label]["rate"],
+            TARGET_SCIPY_RATIO,
+            "x",
+        )
     for label, *_ in SCENES:
         best = max(results[label, B]["rate"] for B in BATCHES)
-        row(f">= {TARGET_SCIPY_RATIO:.0f}x scipy loop, best batch", label,
-            best / scipy_res[label]["rate"], TARGET_SCIPY_RATIO, "x")
+        row(
+            f">= {TARGET_SCIPY_RATIO:.0f}x scipy loop, best batch",
+            label,
+            best / scipy_res[label]["rate"],
+            TARGET_SCIPY_RATIO,
+            "x",
+        )
     print()
-    print(f"Benchmark wall time {wall:.0f} s; load average at end (1/5/15 min): "
-          f"{load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}.")
+    print(
+        f"Benchmark wall time {wall:.0f} s; load average at end (1/5/15 min): "
+        f"{load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}."
+    )
 
 
 if __name__ == "__main__":

@@ -79,8 +79,9 @@ def root_steps_per_collision(scene, states, collisions):
         def one(carry, _):
             state, total = carry
             lane = _step.begin_flight(scene, _step.components(state), scene.orbit_constants(_step.components(state)))
-            lane = jax.lax.while_loop(lambda l: ~l.found & (l.steps < _step.MAX_ROOT_STEPS),
-                                      lambda l: _step.search_step(scene, l), lane)
+            lane = jax.lax.while_loop(
+                lambda l: ~l.found & (l.steps < _step.MAX_ROOT_STEPS), lambda l: _step.search_step(scene, l), lane
+            )
             new_state, _, _ = _step.end_flight(scene, lane, None)
             return (_step.stacked(new_state), total + lane.steps), None
 
@@ -104,14 +105,17 @@ def main():
     rng = np.random.default_rng(3)
     print(f"# Batch drivers: {batch} orbits x {n} collisions, final states, one {jax.default_backend()} device")
     print()
-    print(f"jax {jax.__version__}; {rounds} interleaved rounds, medians; load average {os.getloadavg()[0]:.2f} at start")
+    load = os.getloadavg()[0]
+    print(f"jax {jax.__version__}; {rounds} interleaved rounds, medians; load average {load:.2f} at start")
     print()
     print("| scene | lockstep coll/s | lanes coll/s | lanes / lockstep | root steps / collision |")
     print("|---|---:|---:|---:|---:|")
     for label, scene in scenes().items():
         states = start_states(scene, batch, rng)
-        runs = {d: (lambda d=d: jb.run(scene, states, n, devices=device, driver=d, progress=False))
-                for d in ("lockstep", "lanes")}
+        runs = {
+            d: (lambda d=d: jb.run(scene, states, n, devices=device, driver=d, progress=False))
+            for d in ("lockstep", "lanes")
+        }
         for run in runs.values():
             run()
         times = {d: [] for d in runs}

@@ -148,8 +148,12 @@ def worker_memory(args) -> dict:
         "traced_peak": traced_peak,
         "device_peak": _device_peak_bytes(jax),
         "energy_error": float(np.max(result.max_energy_error)),
-        "result_bytes": int(sum(np.asarray(a).nbytes for a in (result.final_state, result.time,
-                                                                   result.contact_counts, result.max_energy_error))),
+        "result_bytes": int(
+            sum(
+                np.asarray(a).nbytes
+                for a in (result.final_state, result.time, result.contact_counts, result.max_energy_error)
+            )
+        ),
     }
 
 
@@ -166,7 +170,7 @@ def _run_worker(kind: str, devices: int, timeout: float, **options) -> dict:
     if proc.returncode != 0:
         raise RuntimeError(f"worker {kind} failed:\n{proc.stderr[-3000:]}")
     line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT"))
-    return json.loads(line[len("RESULT"):])
+    return json.loads(line[len("RESULT") :])
 
 
 # -- how many cores the machine gives us now -----------------------------------------
@@ -192,8 +196,13 @@ def cores_available(threads: int) -> float:
     """CPU time / wall time of ``threads`` busy threads (numpy matrix products, one
     BLAS thread each): the cores a process with that many threads gets right now."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    proc = subprocess.run([sys.executable, "-c", _CAPACITY_PROBE.format(threads=threads)], env=env,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-c", _CAPACITY_PROBE.format(threads=threads)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     return float(proc.stdout.strip())
 
 
@@ -240,8 +249,15 @@ def report_throughput(args, quick, device_counts, collisions):
     for label in SCENES:
         for _ in range(rounds):
             for devices in device_counts:
-                r = _run_worker("throughput", devices, 1200, scene=label, batch=BATCH,
-                                collisions=collisions[label], repeats=args.repeats)
+                r = _run_worker(
+                    "throughput",
+                    devices,
+                    1200,
+                    scene=label,
+                    batch=BATCH,
+                    collisions=collisions[label],
+                    repeats=args.repeats,
+                )
                 print(f"  {label}, {devices} device(s): {r['rate']:.3g} collisions/s", file=sys.stderr, flush=True)
                 merged = throughput.setdefault((label, devices), {"runs": [], "cores": [], "compile": []})
                 merged["runs"] += r["runs"]
@@ -255,14 +271,18 @@ def report_throughput(args, quick, device_counts, collisions):
     probe = [cores_available(2) for _ in range(3)]
     print(f"## Throughput: jb.run, record='final', {BATCH} orbits (float64)")
     print()
-    print(f"Cores the machine gives a process with 2 busy threads (numpy, one BLAS thread each), "
-          f"probed 3 times after the runs: {', '.join(f'{p:.2f}' for p in probe)}. "
-          "Scaling to 2 devices cannot exceed what this allows.")
+    print(
+        f"Cores the machine gives a process with 2 busy threads (numpy, one BLAS thread each), "
+        f"probed 3 times after the runs: {', '.join(f'{p:.2f}' for p in probe)}. "
+        "Scaling to 2 devices cannot exceed what this allows."
+    )
     print()
-    print(f"collisions per run = {BATCH} x n; median of {rounds} x {args.repeats} runs, each set after a "
-          f"compiling one, in {rounds} round(s) alternating the device counts. "
-          "cores used = the process's CPU time / wall time during a run (the cores it actually got: "
-          "on a shared machine fewer than its devices).")
+    print(
+        f"collisions per run = {BATCH} x n; median of {rounds} x {args.repeats} runs, each set after a "
+        f"compiling one, in {rounds} round(s) alternating the device counts. "
+        "cores used = the process's CPU time / wall time during a run (the cores it actually got: "
+        "on a shared machine fewer than its devices)."
+    )
     print()
     print("| scene | n | devices | median (s) | collisions/s | efficiency | cores used | target | compile (s) |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -272,9 +292,11 @@ def report_throughput(args, quick, device_counts, collisions):
             r = throughput[label, devices]
             efficiency = r["rate"] / (devices * one)
             target = f">= {TARGETS[label]:.0e}" if devices == 1 else f">= {TARGET_EFFICIENCY:.0%} eff."
-            print(f"| {label} | {collisions[label]} | {devices} | {r['median']:.3f} | **{r['rate']:.3g}** "
-                  f"| {efficiency:.0%} | {statistics.median(r['cores']):.2f} | {target} "
-                  f"| {statistics.median(r['compile']):.2f} |")
+            print(
+                f"| {label} | {collisions[label]} | {devices} | {r['median']:.3f} | **{r['rate']:.3g}** "
+                f"| {efficiency:.0%} | {statistics.median(r['cores']):.2f} | {target} "
+                f"| {statistics.median(r['compile']):.2f} |"
+            )
     print()
 
 
@@ -287,20 +309,26 @@ def report_memory(quick):
     ]
     print("## Peak memory: jb.run, record='final', static lens ell = 1.9 (one device)")
     print()
-    print("Peak resident set of the process (ru_maxrss, a high-water mark) after importing jax and jaxbill, "
-          "after drawing the initial states (numpy, this benchmark's own cost), "
-          "after a compiling warm-up run (n <= 1000), and after the measured run; traced = peak of host "
-          "allocations during the measured run (tracemalloc, numpy arrays included); result = the "
-          "returned final states and statistics; energy = the largest max |E - E0| / E0 over the orbits.")
+    print(
+        "Peak resident set of the process (ru_maxrss, a high-water mark) after importing jax and jaxbill, "
+        "after drawing the initial states (numpy, this benchmark's own cost), "
+        "after a compiling warm-up run (n <= 1000), and after the measured run; traced = peak of host "
+        "allocations during the measured run (tracemalloc, numpy arrays included); result = the "
+        "returned final states and statistics; energy = the largest max |E - E0| / E0 over the orbits."
+    )
     print()
-    print("| orbits | collisions per orbit | chunks | time (s) | collisions/s | RSS imported | RSS with states "
-          "| RSS warm | RSS peak | traced host peak | device peak | result | energy |")
+    print(
+        "| orbits | collisions per orbit | chunks | time (s) | collisions/s | RSS imported | RSS with states "
+        "| RSS warm | RSS peak | traced host peak | device peak | result | energy |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for m in memory:
-        print(f"| {m['orbits']} | {m['collisions']:.0e} | {m['chunks']} | {m['seconds']:.1f} | {m['rate']:.3g} "
-              f"| {_mb(m['rss_imported'])} | {_mb(m['rss_states'])} | {_mb(m['rss_warm'])} | {_mb(m['rss_peak'])} "
-              f"| {_bytes(m['traced_peak'])} | {_mb(m['device_peak'])} | {_bytes(m['result_bytes'])} "
-              f"| {m['energy_error']:.1e} |")
+        print(
+            f"| {m['orbits']} | {m['collisions']:.0e} | {m['chunks']} | {m['seconds']:.1f} | {m['rate']:.3g} "
+            f"| {_mb(m['rss_imported'])} | {_mb(m['rss_states'])} | {_mb(m['rss_warm'])} | {_mb(m['rss_peak'])} "
+            f"| {_bytes(m['traced_peak'])} | {_mb(m['device_peak'])} | {_bytes(m['result_bytes'])} "
+            f"| {m['energy_error']:.1e} |"
+        )
     print()
 
 
@@ -314,8 +342,10 @@ def report_root_steps(quick):
     print("|---:|---:|---:|---:|---:|---:|")
     for ell in (1.9, 1.0):
         steps = root_steps(ell, orbits, per_orbit)
-        print(f"| {ell} | {steps.mean():.2f} | {np.median(steps):.0f} | {np.percentile(steps, 90):.0f} "
-              f"| {np.percentile(steps, 99):.0f} | {steps.max()} |")
+        print(
+            f"| {ell} | {steps.mean():.2f} | {np.median(steps):.0f} | {np.percentile(steps, 90):.0f} "
+            f"| {np.percentile(steps, 99):.0f} | {steps.max()} |"
+        )
     print()
 
 
@@ -323,8 +353,12 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (about 1 min)")
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per configuration (default 5, quick 2)")
-    ap.add_argument("--part", choices=("all", "throughput", "memory", "steps"), default="all",
-                    help="run one part of the report only")
+    ap.add_argument(
+        "--part",
+        choices=("all", "throughput", "memory", "steps"),
+        default="all",
+        help="run one part of the report only",
+    )
     ap.add_argument("--worker", choices=("throughput", "memory"), help=argparse.SUPPRESS)
     ap.add_argument("--scene", default="lens ell=1.9", help=argparse.SUPPRESS)
     ap.add_argument("--batch", type=int, default=BATCH, help=argparse.SUPPRESS)
@@ -347,8 +381,10 @@ def main(argv=None):
     load0 = os.getloadavg()
     print("# jaxbill scale benchmark" + (" (--quick)" if quick else ""))
     print()
-    print(f"- python {platform.python_version()}, jax {jax.__version__}, backend {backend}, "
-          f"{os.cpu_count()} CPUs, devices {[str(d) for d in jax.devices()]}")
+    print(
+        f"- python {platform.python_version()}, jax {jax.__version__}, backend {backend}, "
+        f"{os.cpu_count()} CPUs, devices {[str(d) for d in jax.devices()]}"
+    )
     print(f"- load average at start: {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
     print()
     sys.stdout.flush()

@@ -64,12 +64,18 @@ def main() -> None:
     from jaxbill._lyapunov import lyapunov_spectrum
 
     n_plain, n_tangent = (200, 50) if args.quick else (2000, 400)
-    print(f"jaxbill {jb.__version__}, jax {jax.__version__} on {jax.devices()[0].platform} "
-          f"({platform.processor() or platform.machine()}, {os.cpu_count()} CPUs), float64")
-    print(f"batch B = {args.batch}; n = {n_plain} collisions per orbit for `orbit`, {n_tangent} for the tangent "
-          f"runs; steady rate = median of {args.repeats} runs\n")
-    print("| scene | orbit (coll/s) | FTLE, 1 vector (steps/s) | spectrum, k vectors + QR (steps/s) "
-          "| cost vs orbit (1 vector / spectrum) | compile s (orbit / FTLE / spectrum) |")
+    print(
+        f"jaxbill {jb.__version__}, jax {jax.__version__} on {jax.devices()[0].platform} "
+        f"({platform.processor() or platform.machine()}, {os.cpu_count()} CPUs), float64"
+    )
+    print(
+        f"batch B = {args.batch}; n = {n_plain} collisions per orbit for `orbit`, {n_tangent} for the tangent "
+        f"runs; steady rate = median of {args.repeats} runs\n"
+    )
+    print(
+        "| scene | orbit (coll/s) | FTLE, 1 vector (steps/s) | spectrum, k vectors + QR (steps/s) "
+        "| cost vs orbit (1 vector / spectrum) | compile s (orbit / FTLE / spectrum) |"
+    )
     print("|---|---|---|---|---|---|")
     for label, R, ell, inertia in SCENES:
         scene = jb.StickInCircle(R=R, ell=ell, inertia=inertia)

@@ -46,11 +46,19 @@ def parse_arguments(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small sizes: about a minute in all")
     parser.add_argument("--rounds", type=int, default=None, help="timed rounds per row (default 7, quick 3)")
-    parser.add_argument("--cpu-devices", type=int, default=int(os.environ.get("JAXBILL_BENCH_CPU_DEVICES", "2")),
-                        help="JAX CPU devices to split the host into (default 2, or $JAXBILL_BENCH_CPU_DEVICES)")
-    parser.add_argument("--orbit-collisions", type=int, default=None, help="collisions of the single orbit (2e5; quick 2e4)")
+    parser.add_argument(
+        "--cpu-devices",
+        type=int,
+        default=int(os.environ.get("JAXBILL_BENCH_CPU_DEVICES", "2")),
+        help="JAX CPU devices to split the host into (default 2, or $JAXBILL_BENCH_CPU_DEVICES)",
+    )
+    parser.add_argument(
+        "--orbit-collisions", type=int, default=None, help="collisions of the single orbit (2e5; quick 2e4)"
+    )
     parser.add_argument("--batch", type=int, default=None, help="orbits in the batch (4096; quick 1024)")
-    parser.add_argument("--batch-collisions", type=int, default=None, help="collisions per batched orbit (200; quick 100)")
+    parser.add_argument(
+        "--batch-collisions", type=int, default=None, help="collisions per batched orbit (200; quick 100)"
+    )
     args = parser.parse_args(argv)
     defaults = (3, 20_000, 1024, 100) if args.quick else (7, 200_000, 4096, 200)
     for name, value in zip(("rounds", "orbit_collisions", "batch", "batch_collisions"), defaults):
@@ -61,7 +69,9 @@ def parse_arguments(argv=None):
 
 ARGS = parse_arguments() if __name__ == "__main__" else None
 if ARGS is not None and ARGS.cpu_devices > 1:
-    flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith("--xla_force_host_platform_device_count")]
+    flags = [
+        f for f in os.environ.get("XLA_FLAGS", "").split() if not f.startswith("--xla_force_host_platform_device_count")
+    ]
     os.environ["XLA_FLAGS"] = " ".join(flags + [f"--xla_force_host_platform_device_count={ARGS.cpu_devices}"])
 
 import jax  # noqa: E402
@@ -123,8 +133,10 @@ def rate(collisions, seconds):
 def single_orbits(args):
     print(f"## One orbit of {args.orbit_collisions} collisions, every state recorded")
     print()
-    print("| scene | jb.orbit s | numba orbit s | ratio jaxbill/numba | jb.orbit coll/s | numba coll/s "
-          "| cores used (jb, numba) | numba root steps / collision |")
+    print(
+        "| scene | jb.orbit s | numba orbit s | ratio jaxbill/numba | jb.orbit coll/s | numba coll/s "
+        "| cores used (jb, numba) | numba root steps / collision |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     n = args.orbit_collisions
     for label, params in SCENES.items():
@@ -141,8 +153,10 @@ def single_orbits(args):
 
         times = compare({"jaxbill": run_jaxbill, "numba": run_numba}, args.rounds)
         (t_jb, c_jb), (t_nb, c_nb) = times["jaxbill"], times["numba"]
-        print(f"| {label} | {t_jb:.3f} | {t_nb:.3f} | {t_jb / t_nb:.2f} | {rate(n, t_jb)} | {rate(n, t_nb)} "
-              f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1]):.2f} |")
+        print(
+            f"| {label} | {t_jb:.3f} | {t_nb:.3f} | {t_jb / t_nb:.2f} | {rate(n, t_jb)} | {rate(n, t_nb)} "
+            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1]):.2f} |"
+        )
     print()
 
 
@@ -153,13 +167,17 @@ def batches(args, scenes):
     collisions = batch * n
     print(f"## A batch of {batch} orbits x {n} collisions, final states")
     print()
-    print("One core: `jb.run` on one JAX device, `jb.orbit` (batched; records every state) and numba `run_batch`. "
-          "Two cores: `jb.run` over two JAX devices and numba `run_batch_parallel` with two threads. "
-          "Times in seconds (collisions/s in brackets); ratios are jaxbill's time over numba's.")
+    print(
+        "One core: `jb.run` on one JAX device, `jb.orbit` (batched; records every state) and numba `run_batch`. "
+        "Two cores: `jb.run` over two JAX devices and numba `run_batch_parallel` with two threads. "
+        "Times in seconds (collisions/s in brackets); ratios are jaxbill's time over numba's."
+    )
     print()
-    print("| scene | jb.run 1 core | jb.orbit 1 core | numba 1 core | ratio jb.run/numba | ratio jb.orbit/numba "
-          "| jb.run 2 cores | numba 2 cores | ratio 2 cores | speed-up 1 -> 2 cores (jb.run, numba) "
-          "| cores used (jb.run 1/2, numba 1/2) | numba root steps / collision |")
+    print(
+        "| scene | jb.run 1 core | jb.orbit 1 core | numba 1 core | ratio jb.run/numba | ratio jb.orbit/numba "
+        "| jb.run 2 cores | numba 2 cores | ratio 2 cores | speed-up 1 -> 2 cores (jb.run, numba) "
+        "| cores used (jb.run 1/2, numba 1/2) | numba root steps / collision |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for label in scenes:
         params = SCENES[label]
@@ -191,12 +209,17 @@ def batches(args, scenes):
         def cores(name):
             return f"{times[name][1]:.1f}" if name in times else "n/a"
 
-        speedups = (f"{times['run1'][0] / times['run2'][0]:.2f}, {times['numba1'][0] / times['numba2'][0]:.2f}"
-                    if two else "n/a")
-        print(f"| {label} | {cell('run1')} | {cell('orbit1')} | {cell('numba1')} | {ratio('run1', 'numba1')} "
-              f"| {ratio('orbit1', 'numba1')} | {cell('run2')} | {cell('numba2')} | {ratio('run2', 'numba2')} "
-              f"| {speedups} | {cores('run1')}/{cores('run2')}, {cores('numba1')}/{cores('numba2')} "
-              f"| {steps[-1].sum() / collisions:.2f} |")
+        speedups = (
+            f"{times['run1'][0] / times['run2'][0]:.2f}, {times['numba1'][0] / times['numba2'][0]:.2f}"
+            if two
+            else "n/a"
+        )
+        print(
+            f"| {label} | {cell('run1')} | {cell('orbit1')} | {cell('numba1')} | {ratio('run1', 'numba1')} "
+            f"| {ratio('orbit1', 'numba1')} | {cell('run2')} | {cell('numba2')} | {ratio('run2', 'numba2')} "
+            f"| {speedups} | {cores('run1')}/{cores('run2')}, {cores('numba1')}/{cores('numba2')} "
+            f"| {steps[-1].sum() / collisions:.2f} |"
+        )
     print()
 
 
@@ -204,12 +227,18 @@ def main(args):
     started = time.perf_counter()
     print("# jaxbill vs a plain numba loop of the same method")
     print()
-    print(f"- python {platform.python_version()}, jax {jax.__version__} ({jax.default_backend()}), "
-          f"numba {numba.__version__} ({numba.config.NUMBA_NUM_THREADS} threads), numpy {np.__version__}")
-    print(f"- machine: {platform.machine()}, {os.cpu_count()} logical CPUs; "
-          f"len(jax.devices()) = {len(jax.devices())} (XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r})")
-    print(f"- sizes: orbit {args.orbit_collisions} collisions; batch {args.batch} x {args.batch_collisions}; "
-          f"{args.rounds} interleaved rounds, medians; R = 2, float64, I = M ell^2")
+    print(
+        f"- python {platform.python_version()}, jax {jax.__version__} ({jax.default_backend()}), "
+        f"numba {numba.__version__} ({numba.config.NUMBA_NUM_THREADS} threads), numpy {np.__version__}"
+    )
+    print(
+        f"- machine: {platform.machine()}, {os.cpu_count()} logical CPUs; "
+        f"len(jax.devices()) = {len(jax.devices())} (XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r})"
+    )
+    print(
+        f"- sizes: orbit {args.orbit_collisions} collisions; batch {args.batch} x {args.batch_collisions}; "
+        f"{args.rounds} interleaved rounds, medians; R = 2, float64, I = M ell^2"
+    )
     print(f"- load average at start: {load_average()}")
     print()
     single_orbits(args)

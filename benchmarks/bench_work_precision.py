@@ -241,8 +241,8 @@ def build_reference(case, n, n_one_flight):
             bad = np.flatnonzero((departure > HORIZON_TOL) | (np.asarray(pc) != np.asarray(contacts)))
             if bad.size:
                 horizon = min(horizon, int(bad[0]))
-        starts = [list(map(float, case["state0"]))] + [[float(v) for v in s] for s in states[:n_one_flight - 1]]
-        bounced = [()] + [((1, -1) if c == 2 else (c,)) for c in contacts[:n_one_flight - 1]]
+        starts = [list(map(float, case["state0"]))] + [[float(v) for v in s] for s in states[: n_one_flight - 1]]
+        bounced = [()] + [((1, -1) if c == 2 else (c,)) for c in contacts[: n_one_flight - 1]]
         one_flight = []
         for s, b in zip(starts, bounced):
             t1, s1, c1 = reference_orbit(*_reference_args(case), s, 1, dps=REFERENCE_DPS, bounced=b)
@@ -353,8 +353,7 @@ def checker_run(jb, scene, state0, n, solver_name, tol, graze_tol, **options):
     import diffrax
 
     solver = getattr(diffrax, solver_name)()
-    return jb.check(scene, state0, n, solver=solver, rtol=tol, atol=tol, root_tol=tol, graze_tol=graze_tol,
-                    **options)
+    return jb.check(scene, state0, n, solver=solver, rtol=tol, atol=tol, root_tol=tol, graze_tol=graze_tol, **options)
 
 
 def checker_runs(jb, case, ref, k, repeats, mode, progress):
@@ -365,8 +364,11 @@ def checker_runs(jb, case, ref, k, repeats, mode, progress):
 
     scene = make_scene(jb, case)
     state0 = jnp.asarray(case["state0"])
-    settings = [(f"jb.check {s}, tol sweep", s, tol, CHECKER_DEFAULT_GRAZE)
-                for s in CHECKER_SOLVERS[mode] for tol in CHECKER_TOLS[mode]]
+    settings = [
+        (f"jb.check {s}, tol sweep", s, tol, CHECKER_DEFAULT_GRAZE)
+        for s in CHECKER_SOLVERS[mode]
+        for tol in CHECKER_TOLS[mode]
+    ]
     settings += [("jb.check Tsit5, dtmax sweep", "Tsit5", CHECKER_DEFAULT_TOL, g) for g in CHECKER_GRAZE_TOLS[mode]]
     measured = {}
     rows = []
@@ -374,8 +376,10 @@ def checker_runs(jb, case, ref, k, repeats, mode, progress):
         key = (solver_name, tol, graze_tol)
         if key not in measured:
             measured[key] = measure_checker(jb, case, ref, k, repeats, scene, state0, *key)
-            progress(f"{case['label']}: jb.check {solver_name} tol={tol:g} graze_tol={graze_tol:g}: "
-                     f"{measured[key]['seconds'] * 1e3:.1f} ms, {measured[key]['certified']}/{k} certified")
+            progress(
+                f"{case['label']}: jb.check {solver_name} tol={tol:g} graze_tol={graze_tol:g}: "
+                f"{measured[key]['seconds'] * 1e3:.1f} ms, {measured[key]['certified']}/{k} certified"
+            )
         rows.append(dict(method="jb.check (diffrax)", line=line, **measured[key]))
     return rows
 
@@ -403,8 +407,12 @@ def measure_checker(jb, case, ref, k, repeats, scene, state0, solver_name, tol, 
     report = result.report
     return dict(
         settings=dict(solver=solver_name, rtol=tol, atol=tol, root_tol=tol, graze_tol=graze_tol),
-        certified=report.n_checked, flags=[f"{f.kind} at collision {f.index}" for f in report.flags],
-        solver_steps=report.n_steps, **timing, **errors, **local,
+        certified=report.n_checked,
+        flags=[f"{f.kind} at collision {f.index}" for f in report.flags],
+        solver_steps=report.n_steps,
+        **timing,
+        **errors,
+        **local,
     )
 
 
@@ -430,8 +438,16 @@ def scipy_event_orbit(case, n, method, rtol, atol, step_frac):
     for _ in range(n):
         speed = math.hypot(q[3], q[4]) + ell * abs(q[5])
         horizon = 100.0 * (2.0 * R) / speed  # far beyond any free flight
-        sol = solve_ivp(_rhs, (t0, t0 + horizon), q, method=method, rtol=rtol, atol=atol, events=events,
-                        max_step=step_frac * R / speed)
+        sol = solve_ivp(
+            _rhs,
+            (t0, t0 + horizon),
+            q,
+            method=method,
+            rtol=rtol,
+            atol=atol,
+            events=events,
+            max_step=step_frac * R / speed,
+        )
         steps += sol.t.size - 1
         if sol.status != 1:
             break
@@ -449,18 +465,22 @@ def scipy_runs(case, ref, k, repeats, mode, progress):
     """The scipy loop: one line per method sweeping ``rtol = atol`` at the default largest
     step, and one line for DOP853 sweeping the largest step at ``rtol = atol = 1e-3``.
     A setting on two lines is measured once."""
-    settings = [(f"scipy {m}, rtol sweep", m, rtol, SCIPY_DEFAULT_STEP_FRAC)
-                for m in SCIPY_METHODS[mode] for rtol in SCIPY_RTOLS[mode]]
-    settings += [("scipy DOP853, max_step sweep", "DOP853", SCIPY_STEP_SWEEP_RTOL, f)
-                 for f in SCIPY_STEP_FRACS[mode]]
+    settings = [
+        (f"scipy {m}, rtol sweep", m, rtol, SCIPY_DEFAULT_STEP_FRAC)
+        for m in SCIPY_METHODS[mode]
+        for rtol in SCIPY_RTOLS[mode]
+    ]
+    settings += [("scipy DOP853, max_step sweep", "DOP853", SCIPY_STEP_SWEEP_RTOL, f) for f in SCIPY_STEP_FRACS[mode]]
     measured = {}
     rows = []
     for line, method, rtol, step_frac in settings:
         key = (method, rtol, step_frac)
         if key not in measured:
             measured[key] = measure_scipy(case, ref, k, repeats, *key)
-            progress(f"{case['label']}: scipy {method} rtol={rtol:g} max_step_fraction={step_frac}: "
-                     f"{measured[key]['seconds'] * 1e3:.1f} ms")
+            progress(
+                f"{case['label']}: scipy {method} rtol={rtol:g} max_step_fraction={step_frac}: "
+                f"{measured[key]['seconds'] * 1e3:.1f} ms"
+            )
         rows.append(dict(method="scipy solve_ivp", line=line, **measured[key]))
     return rows
 
@@ -468,7 +488,8 @@ def scipy_runs(case, ref, k, repeats, mode, progress):
 def measure_scipy(case, ref, k, repeats, method, rtol, step_frac):
     """Run time and errors of the scipy loop at one setting (see ``scipy_runs``)."""
     timing, (t, contact, states, steps) = min_run_time(
-        lambda: scipy_event_orbit(case, k, method, rtol, rtol, step_frac), repeats)
+        lambda: scipy_event_orbit(case, k, method, rtol, rtol, step_frac), repeats
+    )
 
     def one_collision(start):
         tt, cc, ss, _ = scipy_event_orbit(dict(case, state0=list(start)), 1, method, rtol, rtol, step_frac)
@@ -478,7 +499,11 @@ def measure_scipy(case, ref, k, repeats, method, rtol, step_frac):
     local = measure_one_collision_errors(case, ref, k, one_collision)
     return dict(
         settings=dict(solver=method, rtol=rtol, atol=rtol, max_step_fraction=step_frac),
-        certified=len(t), solver_steps=steps, **timing, **errors, **local,
+        certified=len(t),
+        solver_steps=steps,
+        **timing,
+        **errors,
+        **local,
     )
 
 
@@ -496,8 +521,9 @@ def one_orbit_scaling(jax, jb, case, n_values, repeats):
     rows = []
     for n in n_values:
         if n <= CHUNK:
-            timing, orb = min_run_time(lambda: jax.block_until_ready(jb.orbit(scene, state0, n)),
-                                       repeats if n < CHUNK else 1)
+            timing, orb = min_run_time(
+                lambda: jax.block_until_ready(jb.orbit(scene, state0, n)), repeats if n < CHUNK else 1
+            )
             e_drift, l_drift = invariant_drift(case, np.asarray(orb.state))
             final = np.asarray(orb.state[-1])
             del orb
@@ -513,13 +539,27 @@ def one_orbit_scaling(jax, jb, case, n_values, repeats):
                 state = orb.state[-1]
                 del orb
             seconds = time.perf_counter() - start
-            timing = dict(seconds=seconds, seconds_all=[seconds], first_call=None,
-                          note=f"{n // CHUNK} calls of {CHUNK} collisions, drift evaluation included")
+            timing = dict(
+                seconds=seconds,
+                seconds_all=[seconds],
+                first_call=None,
+                note=f"{n // CHUNK} calls of {CHUNK} collisions, drift evaluation included",
+            )
             final = np.asarray(state)
-        rows.append(dict(method="jaxbill", case=case["label"], n=n, rate=n / timing["seconds"], **timing,
-                         energy_drift=e_drift, angular_momentum_drift=l_drift,
-                         final_energy_error=float(abs(energy(case, final) - energy(case, np.asarray(case["state0"])))
-                                                  / orbit_scales(case)["E"])))
+        rows.append(
+            dict(
+                method="jaxbill",
+                case=case["label"],
+                n=n,
+                rate=n / timing["seconds"],
+                **timing,
+                energy_drift=e_drift,
+                angular_momentum_drift=l_drift,
+                final_energy_error=float(
+                    abs(energy(case, final) - energy(case, np.asarray(case["state0"]))) / orbit_scales(case)["E"]
+                ),
+            )
+        )
     return rows
 
 
@@ -537,18 +577,38 @@ def integrator_one_orbit_scaling(jb, case, checker_n, scipy_n):
     rows = []
     for n in checker_n:
         timing, result = min_run_time(
-            lambda: checker_run(jb, scene, state0, n, "Tsit5", CHECKER_DEFAULT_TOL, CHECKER_DEFAULT_GRAZE), 1)
+            lambda: checker_run(jb, scene, state0, n, "Tsit5", CHECKER_DEFAULT_TOL, CHECKER_DEFAULT_GRAZE), 1
+        )
         e_drift, l_drift = invariant_drift(case, result.state)
-        rows.append(dict(method="jb.check (diffrax)", case=case["label"], n=n, certified=result.report.n_checked,
-                         rate=result.report.n_checked / timing["seconds"], **timing, energy_drift=e_drift,
-                         angular_momentum_drift=l_drift))
+        rows.append(
+            dict(
+                method="jb.check (diffrax)",
+                case=case["label"],
+                n=n,
+                certified=result.report.n_checked,
+                rate=result.report.n_checked / timing["seconds"],
+                **timing,
+                energy_drift=e_drift,
+                angular_momentum_drift=l_drift,
+            )
+        )
     for n in scipy_n:
         start = time.perf_counter()
         t, _, states, _ = scipy_event_orbit(case, n, "DOP853", 1e-12, 1e-12, SCIPY_DEFAULT_STEP_FRAC)
         seconds = time.perf_counter() - start
         e_drift, l_drift = invariant_drift(case, states)
-        rows.append(dict(method="scipy solve_ivp", case=case["label"], n=n, certified=len(t), seconds=seconds,
-                         rate=len(t) / seconds, energy_drift=e_drift, angular_momentum_drift=l_drift))
+        rows.append(
+            dict(
+                method="scipy solve_ivp",
+                case=case["label"],
+                n=n,
+                certified=len(t),
+                seconds=seconds,
+                rate=len(t) / seconds,
+                energy_drift=e_drift,
+                angular_momentum_drift=l_drift,
+            )
+        )
     return rows
 
 
@@ -563,8 +623,9 @@ def batch_scaling(jax, jb, case, batch_sizes, n, repeats, seed):
     for B in batch_sizes:
         states0 = random_states(case["R"], case["ell"], case["inertia"], B, seed=seed + B)
         x = jnp.asarray(states0)
-        timing, orb = min_run_time(lambda: jax.block_until_ready(jb.orbit(scene, x, n)),
-                                   repeats if B * n < 10**7 else 1)
+        timing, orb = min_run_time(
+            lambda: jax.block_until_ready(jb.orbit(scene, x, n)), repeats if B * n < 10**7 else 1
+        )
         states = np.asarray(orb.state)  # (B, n, 6)
         e0, l0 = energy(case, states0)[:, None], angular_momentum(case, states0)[:, None]
         e_drift = float(np.max(np.abs(energy(case, states) - e0) / e0))
@@ -575,8 +636,19 @@ def batch_scaling(jax, jb, case, batch_sizes, n, repeats, seed):
             l_drift = None
         stalled = int(np.sum(np.asarray(orb.contact)[:, -1] == 0))
         del orb, states
-        rows.append(dict(method="jaxbill", case=case["label"], B=B, n=n, rate=B * n / timing["seconds"], **timing,
-                         energy_drift=e_drift, angular_momentum_drift=l_drift, stalled=stalled))
+        rows.append(
+            dict(
+                method="jaxbill",
+                case=case["label"],
+                B=B,
+                n=n,
+                rate=B * n / timing["seconds"],
+                **timing,
+                energy_drift=e_drift,
+                angular_momentum_drift=l_drift,
+                stalled=stalled,
+            )
+        )
     return rows
 
 
@@ -597,8 +669,11 @@ def headline(rows, k_of):
     out = []
     for case in dict.fromkeys(r["case"] for r in rows):
         for method in dict.fromkeys(r["method"] for r in rows):
-            mine = [r for r in rows if r["case"] == case and r["method"] == method
-                    and _complete(r, k_of[case]) and r["contacts_ok"]]
+            mine = [
+                r
+                for r in rows
+                if r["case"] == case and r["method"] == method and _complete(r, k_of[case]) and r["contacts_ok"]
+            ]
             if not mine:
                 continue
             fastest = min(mine, key=lambda r: r["seconds"])
@@ -629,9 +704,11 @@ def fmt(x, spec=".1e"):
 def print_tables(data):
     print("## Cases and references")
     print()
-    print(f"Chaos horizon: first collision at which 1e-15-relative perturbations of state0, followed at "
-          f"{REFERENCE_DPS} digits, depart from the reference by more than {HORIZON_TOL:g} (searched up to "
-          f"{REFERENCE_COLLISIONS} collisions).")
+    print(
+        f"Chaos horizon: first collision at which 1e-15-relative perturbations of state0, followed at "
+        f"{REFERENCE_DPS} digits, depart from the reference by more than {HORIZON_TOL:g} (searched up to "
+        f"{REFERENCE_COLLISIONS} collisions)."
+    )
     print()
     print("| case | state0 | k compared | chaos horizon | reference (s) |")
     print("|---|---|---:|---:|---:|")
@@ -641,20 +718,26 @@ def print_tables(data):
     print()
     print("## Work against precision (one orbit, k collisions)")
     print()
-    print("Run time: minimum over repeats after a compiling call, for all k collisions. Errors: largest "
-          "over the first k collisions against the 50-digit reference, scaled (time in R/V, state in R, rad, "
-          "V, W). 'one-coll.': each collision restarted from the rounded reference state. jb.check's time "
-          "includes its own comparison with jb.orbit.")
+    print(
+        "Run time: minimum over repeats after a compiling call, for all k collisions. Errors: largest "
+        "over the first k collisions against the 50-digit reference, scaled (time in R/V, state in R, rad, "
+        "V, W). 'one-coll.': each collision restarted from the rounded reference state. jb.check's time "
+        "includes its own comparison with jb.orbit."
+    )
     print()
-    print("| case | line | settings | time (ms) | us/coll. | done | contacts | time err | state err "
-          "| one-coll. err | E drift | L drift |")
+    print(
+        "| case | line | settings | time (ms) | us/coll. | done | contacts | time err | state err "
+        "| one-coll. err | E drift | L drift |"
+    )
     print("|---|---|---|---:|---:|---:|:---:|---:|---:|---:|---:|---:|")
     for r in data["work_precision"]:
         done = r.get("certified", r["collisions"])
-        print(f"| {r['case']} | {r['line']} | {describe(r['settings'])} | {r['seconds'] * 1e3:.2f} | "
-              f"{r['seconds'] / max(done, 1) * 1e6:.0f} | {done} | {'ok' if r['contacts_ok'] else 'WRONG'} | "
-              f"{fmt(r['time_error'])} | {fmt(r['state_error'])} | {fmt(r['one_collision_error'])} | "
-              f"{fmt(r['energy_drift'])} | {fmt(r['angular_momentum_drift'])} |")
+        print(
+            f"| {r['case']} | {r['line']} | {describe(r['settings'])} | {r['seconds'] * 1e3:.2f} | "
+            f"{r['seconds'] / max(done, 1) * 1e6:.0f} | {done} | {'ok' if r['contacts_ok'] else 'WRONG'} | "
+            f"{fmt(r['time_error'])} | {fmt(r['state_error'])} | {fmt(r['one_collision_error'])} | "
+            f"{fmt(r['energy_drift'])} | {fmt(r['angular_momentum_drift'])} |"
+        )
     print()
     print("## Headline: each method at its fastest and at its most accurate settings")
     print()
@@ -669,16 +752,20 @@ def print_tables(data):
     print("| case | method | collisions | done | run time (s) | collisions/s | E drift (max) | L drift (max) |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     for r in data["scaling_one_orbit"]:
-        print(f"| {r['case']} | {r['method']} | {r['n']:.0e} | {r.get('certified', r['n'])} | {r['seconds']:.3g} | "
-              f"{r['rate']:.3g} | {fmt(r['energy_drift'])} | {fmt(r['angular_momentum_drift'])} |")
+        print(
+            f"| {r['case']} | {r['method']} | {r['n']:.0e} | {r.get('certified', r['n'])} | {r['seconds']:.3g} | "
+            f"{r['rate']:.3g} | {fmt(r['energy_drift'])} | {fmt(r['angular_momentum_drift'])} |"
+        )
     print()
     print("## Scaling: many orbits (jb.orbit)")
     print()
     print("| case | orbits | collisions each | run time (s) | collisions/s | E drift (max) | L drift (max) | stalled |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for r in data["scaling_batch"]:
-        print(f"| {r['case']} | {r['B']} | {r['n']} | {r['seconds']:.3g} | {r['rate']:.3g} | "
-              f"{fmt(r['energy_drift'])} | {fmt(r['angular_momentum_drift'])} | {r['stalled']} |")
+        print(
+            f"| {r['case']} | {r['B']} | {r['n']} | {r['seconds']:.3g} | {r['rate']:.3g} | "
+            f"{fmt(r['energy_drift'])} | {fmt(r['angular_momentum_drift'])} | {r['stalled']} |"
+        )
 
 
 def short_settings(row):
@@ -703,7 +790,8 @@ def headline_markdown(data):
         lines.append(
             f"| {h['case']} ({h['k']}) | {h['method']} | {short_settings(f)} | {f['seconds'] * 1e3:.2g} ms | "
             f"{fmt(f['time_error'])} | {fmt(f['one_collision_error'])} | {short_settings(b)} | "
-            f"{b['seconds'] * 1e3:.2g} ms | {fmt(b['time_error'])} | {fmt(b['one_collision_error'])} |")
+            f"{b['seconds'] * 1e3:.2g} ms | {fmt(b['time_error'])} | {fmt(b['one_collision_error'])} |"
+        )
     return "\n".join(lines)
 
 
@@ -716,6 +804,7 @@ def scaling_markdown(data):
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for c in data["cases"]:
+
         def longest(method):
             rows = [r for r in data["scaling_one_orbit"] if r["case"] == c["label"] and r["method"] == method]
             return max(rows, key=lambda r: r["n"]) if rows else None
@@ -727,15 +816,20 @@ def scaling_markdown(data):
             f"{fmt(one['energy_drift'])} | {fmt(one['angular_momentum_drift'])} | "
             f"{batch['B']:.0e} x {batch['n']} in {batch['seconds']:.3g} s | {batch['rate']:.2g} | "
             f"{fmt(batch['energy_drift'])} | "
-            f"{checker['rate']:.3g} ({checker['n']:.0e}) | {scipy_loop['rate']:.3g} ({scipy_loop['n']:.0e}) |")
+            f"{checker['rate']:.3g} ({checker['n']:.0e}) | {scipy_loop['rate']:.3g} ({scipy_loop['n']:.0e}) |"
+        )
     return "\n".join(lines)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sweeps and sizes (< 1 min)")
-    ap.add_argument("--repeats", type=int, default=None,
-                    help="timed runs after compilation (default 5, quick 2; at most 3 in the scaling runs)")
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=None,
+        help="timed runs after compilation (default 5, quick 2; at most 3 in the scaling runs)",
+    )
     ap.add_argument("--out", type=pathlib.Path, default=DEFAULT_OUT, help=f"JSON output (default {DEFAULT_OUT})")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
@@ -756,9 +850,11 @@ def main(argv=None):
     print()
     print(machine_info(jax))
     load_start = os.getloadavg()
-    print(f"- load average at start (1/5/15 min): {load_start[0]:.2f} {load_start[1]:.2f} {load_start[2]:.2f}; "
-          "figures come from a shared machine: other processes lengthen every time, minima over repeats "
-          "are reported")
+    print(
+        f"- load average at start (1/5/15 min): {load_start[0]:.2f} {load_start[1]:.2f} {load_start[2]:.2f}; "
+        "figures come from a shared machine: other processes lengthen every time, minima over repeats "
+        "are reported"
+    )
     print()
     sys.stdout.flush()
 
@@ -769,12 +865,25 @@ def main(argv=None):
         k = min(COLLISIONS, ref["horizon"])
         k_of[case["label"]] = k
         sc = orbit_scales(case)
-        cases.append(dict(label=case["label"], R=case["R"], ell=case["ell"],
-                          inertia=None if case["inertia"] is None else str(case["inertia"]),
-                          state0=case["state0"], k=k, horizon=ref["horizon"], reference_dps=REFERENCE_DPS,
-                          reference_seconds=ref["seconds"], scales=sc, chaos_floor=ref["chaos_floor"].tolist()))
-        progress(f"{case['label']}: reference of {REFERENCE_COLLISIONS} collisions, horizon {ref['horizon']} "
-                 f"({ref['seconds']:.1f} s)")
+        cases.append(
+            dict(
+                label=case["label"],
+                R=case["R"],
+                ell=case["ell"],
+                inertia=None if case["inertia"] is None else str(case["inertia"]),
+                state0=case["state0"],
+                k=k,
+                horizon=ref["horizon"],
+                reference_dps=REFERENCE_DPS,
+                reference_seconds=ref["seconds"],
+                scales=sc,
+                chaos_floor=ref["chaos_floor"].tolist(),
+            )
+        )
+        progress(
+            f"{case['label']}: reference of {REFERENCE_COLLISIONS} collisions, horizon {ref['horizon']} "
+            f"({ref['seconds']:.1f} s)"
+        )
         rows = jaxbill_runs(jax, jb, case, ref, k, repeats)
         rows += checker_runs(jb, case, ref, k, repeats, mode, progress)
         rows += scipy_runs(case, ref, k, repeats, mode, progress)
@@ -795,7 +904,7 @@ def main(argv=None):
     data = dict(
         meta=dict(
             generator="benchmarks/bench_work_precision.py" + (" --quick" if args.quick else ""),
-            date=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             machine=machine_info(jax),
             load_average_start=load_start,
             load_average_end=load_end,
@@ -816,8 +925,10 @@ def main(argv=None):
     data["meta"]["wall_seconds"] = time.perf_counter() - t_all
     print_tables(data)
     print()
-    print(f"Wall time {data['meta']['wall_seconds']:.0f} s; load average at end (1/5/15 min): "
-          f"{load_end[0]:.2f} {load_end[1]:.2f} {load_end[2]:.2f}.")
+    print(
+        f"Wall time {data['meta']['wall_seconds']:.0f} s; load average at end (1/5/15 min): "
+        f"{load_end[0]:.2f} {load_end[1]:.2f} {load_end[2]:.2f}."
+    )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w") as f:
         json.dump(plain_json(data), f, indent=1, allow_nan=False)

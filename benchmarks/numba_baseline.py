@@ -74,7 +74,8 @@ def make_engine(jit, fmod):
     CUDA simulator), where float division by zero raises.
     """
 
-    # NaN-propagating, like jnp.maximum/minimum; numba 0.68's CUDA target fails to type the builtins min/max of two floats.
+    # NaN-propagating, like jnp.maximum/minimum; numba 0.68's CUDA target fails to type the
+    # builtins min/max of two floats.
     @jit
     def larger(a, b):
         return a if (a > b or a != a) else b
@@ -168,8 +169,12 @@ def make_engine(jit, fmod):
         along = cx * cu + cy * su
         along_slope = vx * cu + vy * su + om * (cy * cu - cx * su)
         arm = 2.0 * ell
-        return (centre_gap - arm * along, centre_gap + arm * along,
-                centre_slope - arm * along_slope, centre_slope + arm * along_slope)
+        return (
+            centre_gap - arm * along,
+            centre_gap + arm * along,
+            centre_slope - arm * along_slope,
+            centre_slope + arm * along_slope,
+        )
 
     @jit
     def rotor_first_root(R, ell, x, y, a, vx, vy, om, lower_curv, upper_curv, quiet_in, quiet_out, time_scale):
@@ -359,8 +364,16 @@ def make_engine(jit, fmod):
                 touching = False
             if touching:
                 t_next = t
-            finite = (math.isfinite(g0) and math.isfinite(g1) and math.isfinite(g2) and math.isfinite(g3)
-                      and math.isfinite(d0) and math.isfinite(d1) and math.isfinite(d2) and math.isfinite(d3))
+            finite = (
+                math.isfinite(g0)
+                and math.isfinite(g1)
+                and math.isfinite(g2)
+                and math.isfinite(g3)
+                and math.isfinite(d0)
+                and math.isfinite(d1)
+                and math.isfinite(d2)
+                and math.isfinite(d3)
+            )
             hopeless = not (math.isfinite(t_next) and finite)
             done = touching or converged or hopeless
             t = t_next
@@ -462,8 +475,12 @@ def make_engine(jit, fmod):
             return circle_collide(size, x, y, a, vx, vy, om)
         return walls_collide(kind == WALLS_ROTOR, size, ell, mass, inertia, x, y, a, vx, vy, om)
 
-    return types.SimpleNamespace(collide=collide, orbit_direction=orbit_direction,
-                                 rotor_contact_time=rotor_contact_time, walls_contact_time=walls_contact_time)
+    return types.SimpleNamespace(
+        collide=collide,
+        orbit_direction=orbit_direction,
+        rotor_contact_time=rotor_contact_time,
+        walls_contact_time=walls_contact_time,
+    )
 
 
 # Division by zero gives inf/NaN as in numpy rather than raising: the guards
@@ -620,7 +637,7 @@ def walls_params(h, ell, mass=1.0, inertia=None):
 
 def jaxbill_scene(params):
     """The jaxbill scene that ``params`` describes (imports jaxbill)."""
-    import jaxbill as jb  # noqa: PLC0415 (only the checks and the benchmark need it)
+    import jaxbill as jb  # only the checks and the benchmark need it
 
     kind, size, ell, mass, inertia = int(params[0]), *map(float, params[1:])
     if kind in (WALLS_ROTOR, WALLS_STATIC):
@@ -657,7 +674,8 @@ def random_states(params, count, seed=0, margin=1e-3):
             first, height = radius * np.cos(polar), radius * np.sin(polar)
             limit = (1.0 - margin) * size
             inside = (np.hypot(first + ell * np.cos(angle), height + ell * np.sin(angle)) <= limit) & (
-                np.hypot(first - ell * np.cos(angle), height - ell * np.sin(angle)) <= limit)
+                np.hypot(first - ell * np.cos(angle), height - ell * np.sin(angle)) <= limit
+            )
         block = np.stack([first, height, angle, np.cos(heading), np.sin(heading), spin], axis=1)
         rows.append(block[inside])
     return np.ascontiguousarray(np.concatenate(rows)[:count])
@@ -688,12 +706,12 @@ def jaxbill_root_steps(params, states_before):
 
     Uses the scene's own ``root_search``/``gaps_along_flight`` (``jaxbill._step``).
     """
-    import jax  # noqa: PLC0415
-    import jax.numpy as jnp  # noqa: PLC0415
+    import jax
+    import jax.numpy as jnp
 
-    from jaxbill._first_root import first_root  # noqa: PLC0415
-    from jaxbill._step import MAX_ROOT_STEPS as jaxbill_max_steps  # noqa: PLC0415
-    from jaxbill._step import components  # noqa: PLC0415
+    from jaxbill._first_root import first_root
+    from jaxbill._step import MAX_ROOT_STEPS as jaxbill_max_steps
+    from jaxbill._step import components
 
     scene = jaxbill_scene(params)
     kind = int(params[0])
@@ -727,15 +745,22 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
 
     Returns a list of dicts, one per scene; prints a markdown table if ``show``.
     """
-    import jax.numpy as jnp  # noqa: PLC0415
+    import jax.numpy as jnp
 
-    import jaxbill as jb  # noqa: PLC0415
+    import jaxbill as jb
 
     rows = []
     for label, params in CHECK_SCENES.items():
         scene = jaxbill_scene(params)
-        row = {"scene": label, "step_state_diff": 0.0, "step_time_diff": 0.0, "same_step_contacts": True,
-               "same_root_steps": True, "orbit_state_diff": 0.0, "same_orbit_contacts": True}
+        row = {
+            "scene": label,
+            "step_state_diff": 0.0,
+            "step_time_diff": 0.0,
+            "same_step_contacts": True,
+            "same_root_steps": True,
+            "orbit_state_diff": 0.0,
+            "same_orbit_contacts": True,
+        }
         numba_steps, horizons = [], []
         for state0 in random_states(params, orbits, seed=seed):
             reference = jb.orbit(scene, jnp.asarray(state0), long_collisions)
@@ -744,7 +769,8 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
             before = np.concatenate([state0[None], ref_state[: collisions - 1]])
             ref_dt = np.diff(np.concatenate([[0.0], ref_t[:collisions]]))
             after, dt, contact, steps = collision_map(params, before)
-            row["step_state_diff"] = max(row["step_state_diff"], float(_relative_difference(after, ref_state[:collisions]).max()))
+            state_diff = float(_relative_difference(after, ref_state[:collisions]).max())
+            row["step_state_diff"] = max(row["step_state_diff"], state_diff)
             row["step_time_diff"] = max(row["step_time_diff"], float((np.abs(dt - ref_dt) / np.abs(ref_dt)).max()))
             row["same_step_contacts"] &= bool(np.array_equal(contact, ref_contact[:collisions]))
             row["same_root_steps"] &= bool(np.array_equal(steps, jaxbill_root_steps(params, before)))
@@ -764,15 +790,20 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
     if show:
         print(f"numba loop vs jb.orbit: {orbits} random orbits per scene, first {collisions} collisions")
         print()
-        print("| scene | one step: rel. state diff | one step: rel. flight-time diff | same contacts | same root steps "
-              f"| orbits: rel. state diff | same contacts | first collision > 1e-6 apart (of {long_collisions}) "
-              "| numba root steps / collision (max) |")
+        print(
+            "| scene | one step: rel. state diff | one step: rel. flight-time diff | same contacts | same root steps "
+            f"| orbits: rel. state diff | same contacts | first collision > 1e-6 apart (of {long_collisions}) "
+            "| numba root steps / collision (max) |"
+        )
         print("|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             horizon = "none" if r["horizon"] > long_collisions else str(r["horizon"])
-            print(f"| {r['scene']} | {r['step_state_diff']:.1e} | {r['step_time_diff']:.1e} | {r['same_step_contacts']} "
-                  f"| {r['same_root_steps']} | {r['orbit_state_diff']:.1e} | {r['same_orbit_contacts']} | {horizon} "
-                  f"| {r['root_steps_per_collision']:.2f} ({r['max_root_steps']}) |")
+            print(
+                f"| {r['scene']} | {r['step_state_diff']:.1e} | {r['step_time_diff']:.1e} "
+                f"| {r['same_step_contacts']} "
+                f"| {r['same_root_steps']} | {r['orbit_state_diff']:.1e} | {r['same_orbit_contacts']} | {horizon} "
+                f"| {r['root_steps_per_collision']:.2f} ({r['max_root_steps']}) |"
+            )
     return rows
 
 

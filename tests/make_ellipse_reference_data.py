@@ -40,7 +40,7 @@ from mpmath import mp, mpf
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-import mpmath_ellipse_reference as ref  # noqa: E402
+import mpmath_ellipse_reference as ref
 
 DPS = 45
 N_COLLISIONS = 20
@@ -184,8 +184,9 @@ def corner_chord_centre(a, b, ell, alpha):
             qb, qc = 2 * s * cross, s * s * qw - 1
             return mpmath.sqrt(qb * qb - 4 * qa * qc) / (2 * qa)
 
-        s = mpmath.findroot(lambda s: half_chord(s) - ell, (mpf(0), 1 / mpmath.sqrt(qw) * (1 - mpf("1e-12"))),
-                            solver="anderson")
+        s = mpmath.findroot(
+            lambda s: half_chord(s) - ell, (mpf(0), 1 / mpmath.sqrt(qw) * (1 - mpf("1e-12"))), solver="anderson"
+        )
         mid = -2 * s * cross / (2 * qa)
         return [s * w[0] + mid * u[0], s * w[1] + mid * u[1]]
 
@@ -205,8 +206,16 @@ def near_corner_state(a, b, ell, alpha, miss, tau=1.0):
 # the cases
 # ---------------------------------------------------------------------------
 def _case(name, a, b, ell, state0, mass=1.0, inertia=None, note=""):
-    return {"name": name, "a": a, "b": b, "ell": ell, "mass": mass, "inertia": inertia,
-            "state0": [float(v) for v in state0], "note": note}
+    return {
+        "name": name,
+        "a": a,
+        "b": b,
+        "ell": ell,
+        "mass": mass,
+        "inertia": inertia,
+        "state0": [float(v) for v in state0],
+        "note": note,
+    }
 
 
 CASES = [
@@ -228,12 +237,9 @@ CASES = [
     _case("fast_spin", 2.0, 1.4, 0.6, [0.2, -0.1, 0.4, 0.6, 0.5, 40.0]),
     # grazing: an end's curved path tangent to the wall, shifted by 1e-8 (hit) or -1e-8 (miss);
     # for straight paths (static stick, point) a chord meeting the wall at 1e-4 rad.
-    _case("graze_hit_rotor", 2.5, 1.5, 0.8,
-          graze_state(2.5, 1.5, 0.8, 0.7, 0.3, 1.5, 1.0, 1e-8, 0.4)),
-    _case("graze_miss_rotor", 2.5, 1.5, 0.8,
-          graze_state(2.5, 1.5, 0.8, 0.7, 0.3, 1.5, 1.0, -1e-8, 0.4)),
-    _case("graze_miss_rotor_b_major", 1.2, 2.0, 0.5,
-          graze_state(1.2, 2.0, 0.5, 2.5, -0.2, 2.0, 0.8, -1e-9, 0.3)),
+    _case("graze_hit_rotor", 2.5, 1.5, 0.8, graze_state(2.5, 1.5, 0.8, 0.7, 0.3, 1.5, 1.0, 1e-8, 0.4)),
+    _case("graze_miss_rotor", 2.5, 1.5, 0.8, graze_state(2.5, 1.5, 0.8, 0.7, 0.3, 1.5, 1.0, -1e-8, 0.4)),
+    _case("graze_miss_rotor_b_major", 1.2, 2.0, 0.5, graze_state(1.2, 2.0, 0.5, 2.5, -0.2, 2.0, 0.8, -1e-9, 0.3)),
     _case("graze_hit_static", 2.0, 1.2, 0.7, chord_graze_state(2.0, 1.2, 0.7, 2.0, -0.3, 1e-4), inertia=INF),
     _case("graze_hit_point", 2.0, 1.2, 0.0, chord_graze_state(2.0, 1.2, 0.0, -1.0, 0.0, 1e-4)),
     # a stick that never turns, flying at a corner of its region (both ends on the wall).
@@ -291,8 +297,11 @@ def main():
     for case in CASES:
         start = time.time()
         out.append(compute_case(case))
-        print(f"{case['name']:32s} horizon {out[-1]['horizon']:3d}  contacts {out[-1]['contacts']}  "
-              f"{time.time() - start:.1f} s", flush=True)
+        print(
+            f"{case['name']:32s} horizon {out[-1]['horizon']:3d}  contacts {out[-1]['contacts']}  "
+            f"{time.time() - start:.1f} s",
+            flush=True,
+        )
     os.makedirs(os.path.dirname(DATA_PATH), exist_ok=True)
     with open(DATA_PATH, "w") as f:
         json.dump({"dps": DPS, "perturbation": PERTURBATION, "horizon_tol": HORIZON_TOL, "cases": out}, f, indent=1)

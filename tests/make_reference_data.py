@@ -42,11 +42,10 @@ from mpmath import mp, mpf
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from mpmath_reference import (  # noqa: E402
+from mpmath_reference import (
     _params,
     energy,
     flow,
-    gap,
     reference_orbit,
 )
 
@@ -176,100 +175,205 @@ INF = float("inf")
 # and the one-step map at every collision in tests/test_reference.py).
 CASES = [
     # --- the paper's parameters (R = 2) ------------------------------------------------
-    dict(name="paper_l1.9_a", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=[0.03, -0.02, 0.4, 0.6, 0.25, 0.3]),
-    dict(name="paper_l1.9_b", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=[0.0, 0.05, 1.2, -0.3, 0.8, -0.45]),
-    dict(name="paper_l1.1_a", R=2.0, ell=1.1, mass=1.0, inertia=None,
-         state0=[0.2, -0.3, 0.7, 0.9, 0.35, 0.2]),
-    dict(name="paper_l1.1_b", R=2.0, ell=1.1, mass=1.0, inertia=None,
-         state0=[-0.5, 0.1, 2.5, 0.4, -0.7, 0.3]),
-    dict(name="paper_l1.0_a", R=2.0, ell=1.0, mass=1.0, inertia=None,
-         state0=[0.1, 0.2, 0.3, 0.7, -0.4, 0.5]),
-    dict(name="paper_l1.0_b", R=2.0, ell=1.0, mass=1.0, inertia=None,
-         state0=[-0.4, -0.6, -1.0, 0.2, 0.5, -0.8]),
-    dict(name="paper_lens_l1.5_a", R=2.0, ell=1.5, mass=1.0, inertia=INF,
-         state0=[0.1, 0.05, 0.3, 0.7, -0.4, 0.0]),
-    dict(name="paper_lens_l1.5_b", R=2.0, ell=1.5, mass=1.0, inertia=INF,
-         state0=[-0.2, 0.1, -1.1, 0.31, 0.95, 0.0]),
+    dict(name="paper_l1.9_a", R=2.0, ell=1.9, mass=1.0, inertia=None, state0=[0.03, -0.02, 0.4, 0.6, 0.25, 0.3]),
+    dict(name="paper_l1.9_b", R=2.0, ell=1.9, mass=1.0, inertia=None, state0=[0.0, 0.05, 1.2, -0.3, 0.8, -0.45]),
+    dict(name="paper_l1.1_a", R=2.0, ell=1.1, mass=1.0, inertia=None, state0=[0.2, -0.3, 0.7, 0.9, 0.35, 0.2]),
+    dict(name="paper_l1.1_b", R=2.0, ell=1.1, mass=1.0, inertia=None, state0=[-0.5, 0.1, 2.5, 0.4, -0.7, 0.3]),
+    dict(name="paper_l1.0_a", R=2.0, ell=1.0, mass=1.0, inertia=None, state0=[0.1, 0.2, 0.3, 0.7, -0.4, 0.5]),
+    dict(name="paper_l1.0_b", R=2.0, ell=1.0, mass=1.0, inertia=None, state0=[-0.4, -0.6, -1.0, 0.2, 0.5, -0.8]),
+    dict(name="paper_lens_l1.5_a", R=2.0, ell=1.5, mass=1.0, inertia=INF, state0=[0.1, 0.05, 0.3, 0.7, -0.4, 0.0]),
+    dict(name="paper_lens_l1.5_b", R=2.0, ell=1.5, mass=1.0, inertia=INF, state0=[-0.2, 0.1, -1.1, 0.31, 0.95, 0.0]),
     # --- small moments of inertia (the paper's scan I = M ell^2 / 100, / 200) --------
-    dict(name="inertia_div100_l1.9", R=2.0, ell=1.9, mass=1.0, inertia=1.9**2 / 100,
-         state0=[0.03, -0.02, 0.4, 0.6, 0.25, 0.3]),
-    dict(name="inertia_div200_l1.9", R=2.0, ell=1.9, mass=1.0, inertia=1.9**2 / 200,
-         state0=[0.0, 0.05, 1.2, -0.3, 0.8, -0.45]),
-    dict(name="inertia_div100_l1.0", R=2.0, ell=1.0, mass=1.0, inertia=1.0 / 100,
-         state0=[0.1, 0.2, 0.3, 0.7, -0.4, 5.0]),
+    dict(
+        name="inertia_div100_l1.9",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=1.9**2 / 100,
+        state0=[0.03, -0.02, 0.4, 0.6, 0.25, 0.3],
+    ),
+    dict(
+        name="inertia_div200_l1.9",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=1.9**2 / 200,
+        state0=[0.0, 0.05, 1.2, -0.3, 0.8, -0.45],
+    ),
+    dict(
+        name="inertia_div100_l1.0", R=2.0, ell=1.0, mass=1.0, inertia=1.0 / 100, state0=[0.1, 0.2, 0.3, 0.7, -0.4, 5.0]
+    ),
     # --- extreme lengths -----------------------------------------------------------------
-    dict(name="ell_1e-6_inertia1", R=2.0, ell=1e-6, mass=1.0, inertia=1.0,
-         state0=[0.3, -0.2, 0.5, 0.6, 0.45, 0.5]),
-    dict(name="ell_1e-6_default_inertia", R=2.0, ell=1e-6, mass=1.0, inertia=None,
-         state0=[0.3, -0.2, 0.5, 0.6, 0.45, 0.5],
-         ill_conditioned="I = M ell^2 = 1e-12: the first impulses spin the stick up to "
-                         "omega ~ V/ell ~ 1e6, so the contact angle alpha + omega t "
-                         "carries float64 rounding of ~1e-10 rad after one flight"),
-    dict(name="ell_1.9999", R=2.0, ell=1.9999, mass=1.0, inertia=None,
-         state0=[0.0, 0.0, 0.2, 0.3, -0.2, 0.4]),
-    dict(name="ell_1.9999_fast_translation", R=2.0, ell=1.9999, mass=1.0, inertia=None,
-         state0=[1e-5, -2e-5, 2.0, 1.0, 0.3, -0.01]),
-    dict(name="ell_0.01_light_spinning_near_wall", R=2.0, ell=0.01, mass=1.0, inertia=1e-6,
-         state0=[0.3250855576335173, -1.9633368634299824, 0.455067661768356,
-                 -0.031992671569635214, 0.10238296906641126, -1092.195398905454],
-         ill_conditioned="omega ell / |v| ~ 100 with I = M ell^2 / 100: flights of ~30 time "
-                         "units turn the stick by ~1e4 rad, so every contact angle carries "
-                         "~1e-12 rad of rounding, amplified at each collision"),
+    dict(name="ell_1e-6_inertia1", R=2.0, ell=1e-6, mass=1.0, inertia=1.0, state0=[0.3, -0.2, 0.5, 0.6, 0.45, 0.5]),
+    dict(
+        name="ell_1e-6_default_inertia",
+        R=2.0,
+        ell=1e-6,
+        mass=1.0,
+        inertia=None,
+        state0=[0.3, -0.2, 0.5, 0.6, 0.45, 0.5],
+        ill_conditioned="I = M ell^2 = 1e-12: the first impulses spin the stick up to "
+        "omega ~ V/ell ~ 1e6, so the contact angle alpha + omega t "
+        "carries float64 rounding of ~1e-10 rad after one flight",
+    ),
+    dict(name="ell_1.9999", R=2.0, ell=1.9999, mass=1.0, inertia=None, state0=[0.0, 0.0, 0.2, 0.3, -0.2, 0.4]),
+    dict(
+        name="ell_1.9999_fast_translation",
+        R=2.0,
+        ell=1.9999,
+        mass=1.0,
+        inertia=None,
+        state0=[1e-5, -2e-5, 2.0, 1.0, 0.3, -0.01],
+    ),
+    dict(
+        name="ell_0.01_light_spinning_near_wall",
+        R=2.0,
+        ell=0.01,
+        mass=1.0,
+        inertia=1e-6,
+        state0=[
+            0.3250855576335173,
+            -1.9633368634299824,
+            0.455067661768356,
+            -0.031992671569635214,
+            0.10238296906641126,
+            -1092.195398905454,
+        ],
+        ill_conditioned="omega ell / |v| ~ 100 with I = M ell^2 / 100: flights of ~30 time "
+        "units turn the stick by ~1e4 rad, so every contact angle carries "
+        "~1e-12 rad of rounding, amplified at each collision",
+    ),
     # --- fast spin: |omega| ell / |v| = 1e3 -----------------------------------------------
-    dict(name="fast_spin_l1.9", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=_fast_spin_state(2.0, 1.9, 1e3, 0.5, 0.3, (0.01, -0.01), 0.3)),
-    dict(name="fast_spin_l1.9_light", R=2.0, ell=1.9, mass=1.0, inertia=1e-6,
-         state0=_fast_spin_state(2.0, 1.9, 1e3, 0.5, 0.3, (0.01, -0.01), 0.3)),
-    dict(name="fast_spin_l1.0_light", R=2.0, ell=1.0, mass=1.0, inertia=1e-6,
-         state0=_fast_spin_state(2.0, 1.0, 1e3, 0.5, 0.3, (0.2, -0.1), 0.3)),
-    dict(name="fast_spin_l1.0_default_inertia", R=2.0, ell=1.0, mass=1.0, inertia=None,
-         state0=_fast_spin_state(2.0, 1.0, 1e3, 0.5, 0.3, (0.2, -0.1), 0.3),
-         ill_conditioned="the spinning end's first contacts are near-tangential "
-                         "(the end sweeps a circle that creeps out to the wall), "
-                         "each amplifying rounding ~10x"),
-    dict(name="fast_spin_heavy_rotor", R=2.0, ell=1.0, mass=1.0, inertia=100.0,
-         state0=_fast_spin_state(2.0, 1.0, -1e3, 0.5, 2.0, (-0.3, 0.4), 1.0),
-         ill_conditioned="spin energy 1e5 x translational: the centre's velocity "
-                         "(1e-3 of the speed scale) is changed by O(1) at each "
-                         "near-tangential contact of the whirling end"),
+    dict(
+        name="fast_spin_l1.9",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=None,
+        state0=_fast_spin_state(2.0, 1.9, 1e3, 0.5, 0.3, (0.01, -0.01), 0.3),
+    ),
+    dict(
+        name="fast_spin_l1.9_light",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=1e-6,
+        state0=_fast_spin_state(2.0, 1.9, 1e3, 0.5, 0.3, (0.01, -0.01), 0.3),
+    ),
+    dict(
+        name="fast_spin_l1.0_light",
+        R=2.0,
+        ell=1.0,
+        mass=1.0,
+        inertia=1e-6,
+        state0=_fast_spin_state(2.0, 1.0, 1e3, 0.5, 0.3, (0.2, -0.1), 0.3),
+    ),
+    dict(
+        name="fast_spin_l1.0_default_inertia",
+        R=2.0,
+        ell=1.0,
+        mass=1.0,
+        inertia=None,
+        state0=_fast_spin_state(2.0, 1.0, 1e3, 0.5, 0.3, (0.2, -0.1), 0.3),
+        ill_conditioned="the spinning end's first contacts are near-tangential "
+        "(the end sweeps a circle that creeps out to the wall), "
+        "each amplifying rounding ~10x",
+    ),
+    dict(
+        name="fast_spin_heavy_rotor",
+        R=2.0,
+        ell=1.0,
+        mass=1.0,
+        inertia=100.0,
+        state0=_fast_spin_state(2.0, 1.0, -1e3, 0.5, 2.0, (-0.3, 0.4), 1.0),
+        ill_conditioned="spin energy 1e5 x translational: the centre's velocity "
+        "(1e-3 of the speed scale) is changed by O(1) at each "
+        "near-tangential contact of the whirling end",
+    ),
     # --- near-grazing: an end reaching the wall tangentially (depth 2e-8) ----------------
-    dict(name="graze_hit_2e-8_l1.9_a", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=graze_state(2.0, 1.9, -0.8, -0.5, 2e-8, 0.3, 0.37)),
-    dict(name="graze_miss_2e-8_l1.9_a", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=graze_state(2.0, 1.9, -0.8, -0.5, -2e-8, 0.3, 0.37)),
-    dict(name="graze_hit_2e-8_l1.9_b", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=graze_state(2.0, 1.9, 0.8, 0.2, 2e-8, 0.3, -1.2)),
-    dict(name="graze_miss_2e-8_l1.9_b", R=2.0, ell=1.9, mass=1.0, inertia=None,
-         state0=graze_state(2.0, 1.9, 0.8, 0.2, -2e-8, 0.3, -1.2)),
-    dict(name="graze_miss_2e-8_heavy_rotor", R=2.0, ell=1.0, mass=1.0, inertia=100.0,
-         state0=graze_state(2.0, 1.0, 1.0, 0.0, -2e-8, 0.5, 2.5)),
-    dict(name="graze_hit_2e-8_l1.0", R=2.0, ell=1.0, mass=1.0, inertia=None,
-         state0=graze_state(2.0, 1.0, 1.0, 0.3, 2e-8, 0.5, 0.37),
-         ill_conditioned="a 2e-8 deep tangential hit has condition ~1e4 (the contact "
-                         "time moves by d(depth)/sqrt(depth)) and ell = 1 is chaotic"),
+    dict(
+        name="graze_hit_2e-8_l1.9_a",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=None,
+        state0=graze_state(2.0, 1.9, -0.8, -0.5, 2e-8, 0.3, 0.37),
+    ),
+    dict(
+        name="graze_miss_2e-8_l1.9_a",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=None,
+        state0=graze_state(2.0, 1.9, -0.8, -0.5, -2e-8, 0.3, 0.37),
+    ),
+    dict(
+        name="graze_hit_2e-8_l1.9_b",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=None,
+        state0=graze_state(2.0, 1.9, 0.8, 0.2, 2e-8, 0.3, -1.2),
+    ),
+    dict(
+        name="graze_miss_2e-8_l1.9_b",
+        R=2.0,
+        ell=1.9,
+        mass=1.0,
+        inertia=None,
+        state0=graze_state(2.0, 1.9, 0.8, 0.2, -2e-8, 0.3, -1.2),
+    ),
+    dict(
+        name="graze_miss_2e-8_heavy_rotor",
+        R=2.0,
+        ell=1.0,
+        mass=1.0,
+        inertia=100.0,
+        state0=graze_state(2.0, 1.0, 1.0, 0.0, -2e-8, 0.5, 2.5),
+    ),
+    dict(
+        name="graze_hit_2e-8_l1.0",
+        R=2.0,
+        ell=1.0,
+        mass=1.0,
+        inertia=None,
+        state0=graze_state(2.0, 1.0, 1.0, 0.3, 2e-8, 0.5, 0.37),
+        ill_conditioned="a 2e-8 deep tangential hit has condition ~1e4 (the contact "
+        "time moves by d(depth)/sqrt(depth)) and ell = 1 is chaotic",
+    ),
     # --- lens orbits passing near a corner -------------------------------------------------
-    dict(name="lens_near_corner_1e-8", R=2.0, ell=1.5, mass=1.0, inertia=INF,
-         state0=lens_corner_state(2.0, 1.5, 0.4, 1e-8, 0.1, 1.0, which=1)),
-    dict(name="lens_near_corner_1e-6_other", R=2.0, ell=1.5, mass=1.0, inertia=INF,
-         state0=lens_corner_state(2.0, 1.5, -0.9, 1e-6, -0.25, 0.8, which=-1)),
-    dict(name="lens_near_corner_1e-12", R=2.0, ell=1.5, mass=1.0, inertia=INF,
-         state0=lens_corner_state(2.0, 1.5, 2.0, 1e-12, 0.3, 1.0, which=1)),
+    dict(
+        name="lens_near_corner_1e-8",
+        R=2.0,
+        ell=1.5,
+        mass=1.0,
+        inertia=INF,
+        state0=lens_corner_state(2.0, 1.5, 0.4, 1e-8, 0.1, 1.0, which=1),
+    ),
+    dict(
+        name="lens_near_corner_1e-6_other",
+        R=2.0,
+        ell=1.5,
+        mass=1.0,
+        inertia=INF,
+        state0=lens_corner_state(2.0, 1.5, -0.9, 1e-6, -0.25, 0.8, which=-1),
+    ),
+    dict(
+        name="lens_near_corner_1e-12",
+        R=2.0,
+        ell=1.5,
+        mass=1.0,
+        inertia=INF,
+        state0=lens_corner_state(2.0, 1.5, 2.0, 1e-12, 0.3, 1.0, which=1),
+    ),
     # --- the circle (ell = 0) ----------------------------------------------------------------
-    dict(name="circle", R=2.0, ell=0.0, mass=1.0, inertia=None,
-         state0=[0.3, -0.5, 0.1, 0.4, 0.9, 0.7]),
-    dict(name="circle_mass3_R0.5", R=0.5, ell=0.0, mass=3.0, inertia=None,
-         state0=[0.1, 0.2, 0.0, -1.3, 0.2, 0.0]),
+    dict(name="circle", R=2.0, ell=0.0, mass=1.0, inertia=None, state0=[0.3, -0.5, 0.1, 0.4, 0.9, 0.7]),
+    dict(name="circle_mass3_R0.5", R=0.5, ell=0.0, mass=3.0, inertia=None, state0=[0.1, 0.2, 0.0, -1.3, 0.2, 0.0]),
     # --- mass != 1 and other scales ----------------------------------------------------------
-    dict(name="mass3_l1.0", R=2.0, ell=1.0, mass=3.0, inertia=None,
-         state0=[0.1, 0.2, 0.3, 0.7, -0.4, 0.5]),
-    dict(name="mass0.25_inertia0.7", R=2.0, ell=1.2, mass=0.25, inertia=0.7,
-         state0=[0.1, -0.3, 2.0, -0.5, 0.6, 1.5]),
-    dict(name="lens_mass5_R3", R=3.0, ell=1.0, mass=5.0, inertia=INF,
-         state0=[0.5, 0.2, 0.8, 0.9, -1.7, 0.0]),
-    dict(name="R0.1_l0.05_mass2", R=0.1, ell=0.05, mass=2.0, inertia=None,
-         state0=[0.01, 0.0, 0.5, 3.0, 1.0, 20.0]),
+    dict(name="mass3_l1.0", R=2.0, ell=1.0, mass=3.0, inertia=None, state0=[0.1, 0.2, 0.3, 0.7, -0.4, 0.5]),
+    dict(name="mass0.25_inertia0.7", R=2.0, ell=1.2, mass=0.25, inertia=0.7, state0=[0.1, -0.3, 2.0, -0.5, 0.6, 1.5]),
+    dict(name="lens_mass5_R3", R=3.0, ell=1.0, mass=5.0, inertia=INF, state0=[0.5, 0.2, 0.8, 0.9, -1.7, 0.0]),
+    dict(name="R0.1_l0.05_mass2", R=0.1, ell=0.05, mass=2.0, inertia=None, state0=[0.01, 0.0, 0.5, 3.0, 1.0, 20.0]),
 ]
 
 
@@ -323,13 +427,18 @@ def main(argv=None):
     results = []
     for case in cases:
         r = compute_case(case)
-        print(f"{r['name']:32s} horizon={r['horizon']:3d} t={r['seconds_total']:7.2f}s contacts={r['contacts'][:12]}", flush=True)
+        timing = f"horizon={r['horizon']:3d} t={r['seconds_total']:7.2f}s"
+        print(f"{r['name']:32s} {timing} contacts={r['contacts'][:12]}", flush=True)
         results.append(r)
     if args.check:
         with open(DATA_PATH) as f:
             stored = {c["name"]: c for c in json.load(f)["cases"]}
-        bad = [r["name"] for r in results if {k: v for k, v in r.items() if not k.startswith("seconds")}
-               != {k: v for k, v in stored[r["name"]].items() if not k.startswith("seconds")}]
+        bad = [
+            r["name"]
+            for r in results
+            if {k: v for k, v in r.items() if not k.startswith("seconds")}
+            != {k: v for k, v in stored[r["name"]].items() if not k.startswith("seconds")}
+        ]
         print("mismatching cases:", bad)
         return 1 if bad else 0
     if args.only:

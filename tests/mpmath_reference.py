@@ -142,9 +142,7 @@ def _first_root(R, ell, state, k, t_cap, just_bounced, max_steps):
     g0, g1 = gap(R, ell, state, k, t)
     if just_bounced:
         if g1 <= 0:
-            raise ArithmeticError(
-                "end %d just bounced but is not moving inward (g'=%s)" % (k, g1)
-            )
+            raise ArithmeticError(f"end {k} just bounced but is not moving inward (g'={g1})")
         g0 = mpf(0)
     steps = 0
     while True:
@@ -165,7 +163,7 @@ def _first_root(R, ell, state, k, t_cap, just_bounced, max_steps):
         g0, g1 = gap(R, ell, state, k, t)
         steps += 1
         if steps > max_steps:
-            raise ArithmeticError("root isolation did not converge (end %d)" % k)
+            raise ArithmeticError(f"root isolation did not converge (end {k})")
     # Newton polish from the left of the root
     for _ in range(8):
         dt = -g0 / g1
@@ -174,9 +172,9 @@ def _first_root(R, ell, state, k, t_cap, just_bounced, max_steps):
         if abs(dt) <= mpf(10) ** (-(mp.dps - 2)) * (1 + abs(t)):
             break
     if not (g1 < 0):
-        raise ArithmeticError("polished root is not approaching (end %d)" % k)
+        raise ArithmeticError(f"polished root is not approaching (end {k})")
     if t <= 0:
-        raise ArithmeticError("root at t <= 0 (end %d)" % k)
+        raise ArithmeticError(f"root at t <= 0 (end {k})")
     return t if t < t_cap else None
 
 
@@ -268,9 +266,9 @@ def reference_orbit(
             g0, g1 = gap(R, ell, state, k)
             if k in bounced:
                 if abs(g0) > mpf("1e-10") * R * R or g1 <= 0:
-                    raise ValueError("end %d is not on the wall moving inward" % k)
+                    raise ValueError(f"end {k} is not on the wall moving inward")
             elif g0 < 0:
-                raise ValueError("end %d starts outside the circle" % k)
+                raise ValueError(f"end {k} starts outside the circle")
 
         times, states, contacts = [], [], []
         t_abs = mpf(0)

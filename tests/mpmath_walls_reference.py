@@ -164,7 +164,7 @@ def normalize_state(kind, state):
     kind = kind_of(kind)
     s = [mpf(v) for v in state]
     if len(s) != (6 if kind == "2D" else 12):
-        raise ValueError("state must have %d components" % (6 if kind == "2D" else 12))
+        raise ValueError(f"state must have {6 if kind == '2D' else 12} components")
     if kind == "3D":
         n = mpmath.sqrt(s[3] ** 2 + s[4] ** 2 + s[5] ** 2)
         if not (n > 0):
@@ -287,7 +287,7 @@ def _first_root(model, t_cap, just_bounced, h, T, max_steps):
     g0, g1 = model(mpf(0))
     if just_bounced:
         if not (g1 > 0):
-            raise ArithmeticError("gap just bounced but is not opening (g'=%s)" % g1)
+            raise ArithmeticError(f"gap just bounced but is not opening (g'={g1})")
         g0 = mpf(0)
     if model.A == 0:  # linear gap (no spin, or a 3D end whose height does not oscillate)
         if g1 >= 0:
@@ -318,7 +318,7 @@ def _first_root(model, t_cap, just_bounced, h, T, max_steps):
         g0, g1 = model(t)
         steps += 1
         if steps > max_steps:
-            raise ArithmeticError("root isolation did not converge in %d steps" % max_steps)
+            raise ArithmeticError(f"root isolation did not converge in {max_steps} steps")
     # Newton polish, starting just left of the root
     tol = mpf(10) ** (-(dps - 4)) * (T + abs(t))
     for _ in range(20):
@@ -479,10 +479,10 @@ def reference_orbit(
             g0, g1 = g_now[i]
             if i in bounced:
                 if abs(g0) > mpf("1e-10") * h or not (g1 > 0):
-                    raise ValueError("gap %d is not on its wall and opening" % i)
+                    raise ValueError(f"gap {i} is not on its wall and opening")
             elif g0 < 0 or (g0 <= mpf("1e-10") * h and g1 < 0):
-                raise ValueError("gap %d is negative or closing on the wall at t = 0 (g=%s, g'=%s)"
-                                 % (i, mpmath.nstr(g0, 5), mpmath.nstr(g1, 5)))
+                g0_text, g1_text = mpmath.nstr(g0, 5), mpmath.nstr(g1, 5)
+                raise ValueError(f"gap {i} is negative or closing on the wall at t = 0 (g={g0_text}, g'={g1_text})")
 
         def conserved(s):
             if kind == "2D":
@@ -523,7 +523,7 @@ def reference_orbit(
                     continue
                 raise RuntimeError("no collision before t_max")
             t_hit = min(roots.values())
-            first = min((i for i in roots if roots[i] == t_hit))
+            first = min(i for i in roots if roots[i] == t_hit)
             state = flow(kind, state, t_hit)
             g_hit = gaps(kind, h, ell, state)
             hit = [first]
@@ -533,8 +533,8 @@ def reference_orbit(
                     continue
                 gj, dgj = g_hit[j]
                 if dgj < 0 and gj <= SIMULTANEOUS_TOL * h:
-                    if gj < -mpf(10) ** (-(dps - 8)) * h:
-                        raise ArithmeticError("gap %d is through its wall at the event" % j)
+                    if gj < -(mpf(10) ** (-(dps - 8))) * h:
+                        raise ArithmeticError(f"gap {j} is through its wall at the event")
                     hit.append(j)
                     second = max(second or 0, float(abs(gj) / h))
                 elif dgj < 0:
@@ -555,7 +555,7 @@ def reference_orbit(
             sp = approach_speeds(kind, ell, new)
             for j in hit:
                 if not (sp[j] < 0):
-                    raise ArithmeticError("gap %d still approaching after the event" % j)
+                    raise ArithmeticError(f"gap {j} still approaching after the event")
             state = new
             bounced = set(hit)
             # self-checks

@@ -14,11 +14,20 @@ REPORT = (
 
 
 def _fresh(env_changes=None, before=""):
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "JAXBILL_COMPILE_LOOPS_WHOLE", "JAXBILL_NO_XLA_SETTINGS")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "JAXBILL_COMPILE_LOOPS_WHOLE", "JAXBILL_NO_XLA_SETTINGS")
+    }
     env.update(env_changes or {})
-    out = subprocess.run([sys.executable, "-c", REPORT.format(before=before)], env=env, capture_output=True,
-                         text=True, timeout=120, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", REPORT.format(before=before)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -35,7 +44,10 @@ def test_small_loops_on_request_and_users_choices_kept():
     users = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=7"
     report = _fresh({"JAXBILL_COMPILE_LOOPS_WHOLE": "1", "XLA_FLAGS": users, "JAX_NUM_CPU_DEVICES": "1"})
     assert report["flags"] == users and report["devices"] == 1
-    assert report["settings"] == {"small_loops": "left to the user's XLA_FLAGS", "cpu_devices": "left to the user's choice"}
+    assert report["settings"] == {
+        "small_loops": "left to the user's XLA_FLAGS",
+        "cpu_devices": "left to the user's choice",
+    }
 
 
 def test_too_late_when_the_backend_has_started_and_opting_out():

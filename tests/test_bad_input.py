@@ -153,9 +153,13 @@ def test_end_on_wall_moving_inwards_is_accepted():
 
 @pytest.mark.parametrize(
     "n, match",
-    [(-1, r"n must be a non-negative integer"), (2.5, r"n must be a non-negative integer"),
-     (3.0, r"n must be a non-negative integer"), ("3", r"n must be a non-negative integer"),
-     (None, r"n must be a non-negative integer")],
+    [
+        (-1, r"n must be a non-negative integer"),
+        (2.5, r"n must be a non-negative integer"),
+        (3.0, r"n must be a non-negative integer"),
+        ("3", r"n must be a non-negative integer"),
+        (None, r"n must be a non-negative integer"),
+    ],
 )
 def test_bad_orbit_length_raises(n, match):
     with pytest.raises(ValueError, match=match):
@@ -213,8 +217,15 @@ def _collide_traced(R, ell, mass, inertia, s):
 
 @pytest.mark.parametrize(
     "R, ell, mass, inertia",
-    [(-2.0, 1.0, 1.0, 1.0), (2.0, 2.5, 1.0, 1.0), (2.0, 1.0, -1.0, 1.0), (2.0, 1.0, 1.0, -1.0),
-     (NAN, 1.0, 1.0, 1.0), (2.0, 1.0, 1.0, NAN), (INF, 1.0, 1.0, 1.0)],
+    [
+        (-2.0, 1.0, 1.0, 1.0),
+        (2.0, 2.5, 1.0, 1.0),
+        (2.0, 1.0, -1.0, 1.0),
+        (2.0, 1.0, 1.0, -1.0),
+        (NAN, 1.0, 1.0, 1.0),
+        (2.0, 1.0, 1.0, NAN),
+        (INF, 1.0, 1.0, 1.0),
+    ],
 )
 def test_invalid_traced_parameters_are_poisoned(R, ell, mass, inertia):
     """A scene built inside jit from traced values cannot be checked eagerly."""
@@ -257,8 +268,9 @@ def test_flight_that_never_reaches_the_wall(case):
     assert np.all(np.asarray(orb.t) == INF)
     assert np.all(np.asarray(orb.contact) == 0)
     assert np.all(np.isfinite(np.asarray(orb.state)))
-    np.testing.assert_array_equal(np.asarray(orb.state)[:, [0, 1, 3, 4, 5]],
-                                  np.broadcast_to(state[[0, 1, 3, 4, 5]], (N, 5)))
+    np.testing.assert_array_equal(
+        np.asarray(orb.state)[:, [0, 1, 3, 4, 5]], np.broadcast_to(state[[0, 1, 3, 4, 5]], (N, 5))
+    )
 
 
 def test_batch_with_an_orbit_that_never_collides():

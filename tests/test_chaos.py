@@ -13,8 +13,13 @@ from jaxbill._lyapunov import lyapunov_spectrum
 
 @pytest.mark.parametrize(
     "params,L",
-    [(dict(R=2.0, ell=1.0), 0.3), (dict(R=2.0, ell=1.9, inertia=0.0361), 0.0), (dict(R=2.0, ell=1.0), None),
-     (dict(R=2.0, ell=1.5, inertia=float("inf")), None), (dict(R=2.0, ell=0.0), None)],
+    [
+        (dict(R=2.0, ell=1.0), 0.3),
+        (dict(R=2.0, ell=1.9, inertia=0.0361), 0.0),
+        (dict(R=2.0, ell=1.0), None),
+        (dict(R=2.0, ell=1.5, inertia=float("inf")), None),
+        (dict(R=2.0, ell=0.0), None),
+    ],
 )
 def test_shell_samples_have_the_energy_and_momentum_asked_for(params, L):
     scene = jb.StickInCircle(**params)

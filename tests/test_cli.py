@@ -27,7 +27,8 @@ def _run(*args):
 @pytest.fixture(scope="module")
 def demo():
     proc = _run("demo", "-n", "200", "--show", "3")
-    assert proc.returncode == 0, f"exit {proc.returncode}\nstdout:\n{proc.stdout[-2000:]}\nstderr:\n{proc.stderr[-3000:]}"
+    output = f"stdout:\n{proc.stdout[-2000:]}\nstderr:\n{proc.stderr[-3000:]}"
+    assert proc.returncode == 0, f"exit {proc.returncode}\n{output}"
     return proc.stdout
 
 

@@ -21,8 +21,8 @@ import jax
 import numpy as np
 
 import jaxbill as jb
-from jaxbill import Checkpoint, run
 from helpers import random_states
+from jaxbill import Checkpoint, run
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 N = 40
@@ -75,13 +75,19 @@ def test_two_processes_split_a_batch_and_match_one_process(tmp_path):
     env = dict(os.environ)
     env["JAX_PLATFORMS"] = "cpu"
     # One device per process, whatever the parent was started with.
-    env["XLA_FLAGS"] = " ".join(f for f in env.get("XLA_FLAGS", "").split()
-                                if not f.startswith("--xla_force_host_platform_device_count"))
+    env["XLA_FLAGS"] = " ".join(
+        f for f in env.get("XLA_FLAGS", "").split() if not f.startswith("--xla_force_host_platform_device_count")
+    )
     port = _free_port()
     out = tmp_path / "run"
     workers = [
-        subprocess.Popen([sys.executable, "-c", _WORKER, HERE, str(port), str(i), str(out)],
-                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        subprocess.Popen(
+            [sys.executable, "-c", _WORKER, HERE, str(port), str(i), str(out)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         for i in range(2)
     ]
     logs = []

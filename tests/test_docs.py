@@ -20,9 +20,9 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import pytest  # noqa: E402
+import pytest
 
-import jaxbill as jb  # noqa: E402
+import jaxbill as jb
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -48,13 +48,14 @@ def test_getting_started_python_blocks_run(tmp_path, monkeypatch, capsys):
     for number, block in enumerate(blocks, 1):
         try:
             exec(compile(block, f"getting-started.md, python block {number}", "exec"), namespace)
-        except Exception as error:  # noqa: BLE001 (report which block broke, with the error)
+        except Exception as error:  # report which block broke, with the error
             pytest.fail(f"python block {number} of getting-started.md raised {type(error).__name__}: {error}")
     # The five lines print the conserved energy and angular momentum of the orbit's last state.
     printed = [float(v) for v in capsys.readouterr().out.split()]
     scene, state0 = namespace["scene"], namespace["state0"]
-    assert printed == pytest.approx([float(jb.energy(scene, state0)), float(jb.angular_momentum(scene, state0))],
-                                    rel=1e-12)
+    assert printed == pytest.approx(
+        [float(jb.energy(scene, state0)), float(jb.angular_momentum(scene, state0))], rel=1e-12
+    )
     assert (tmp_path / "orbit.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert namespace["batch"].state.shape == (2, 1000, 6)
     assert namespace["new_states"].shape == (3, 6)
@@ -96,8 +97,14 @@ def test_a_public_name_without_a_docstring_is_a_warning(caplog, monkeypatch):
 def test_docs_build_strict(tmp_path):
     site = tmp_path / "site"
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1", JAX_PLATFORMS="cpu")
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
-                          cwd=ROOT, capture_output=True, text=True, env=env, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-4000:]
     scenes = (site / "api" / "scenes" / "index.html").read_text()
     assert 'id="jaxbill.StickInCircle"' in scenes

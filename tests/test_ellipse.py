@@ -149,6 +149,7 @@ def test_jit_and_vmap_over_states_and_over_scenes():
     batched = jax.jit(jax.vmap(jb.collide, in_axes=(None, 0)))(scene, jnp.asarray(states))
     for i, (s, dt, k) in enumerate(single):
         np.testing.assert_allclose(batched[0][i], s, rtol=1e-14, atol=1e-15)
+        np.testing.assert_allclose(batched[1][i], dt, rtol=1e-14, atol=1e-15)
         assert int(batched[2][i]) == int(k)
     # A batch of scenes (a, b, ell of shape (3,)), one state each.
     a, b, ell = np.array([2.0, 2.2, 1.5]), np.array([1.0, 1.4, 2.0]), np.array([0.6, 0.5, 0.7])

@@ -67,7 +67,7 @@ def _reference(c):
     return [mpf(t) for t in c["times"]], [[mpf(v) for v in s] for s in c["states"]], list(c["contacts"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _jaxbill_orbit(name):
     c = DATA[name]
     orb = jb.orbit(_scene(c), jnp.asarray(c["state0"]), c["n"])
@@ -121,8 +121,18 @@ def test_well_conditioned_cases_agree_to_1e_12_on_first_collisions():
     assert worst <= 1e-12
 
 
-ONE_STEP = ["ratio_3", "fast_spin", "graze_miss_rotor", "graze_hit_rotor", "graze_hit_static", "graze_hit_point",
-            "static_near_corner_1e-7", "longer_than_minor", "mass0.3_inertia0.05", "point_ratio_1.5_spinning"]
+ONE_STEP = [
+    "ratio_3",
+    "fast_spin",
+    "graze_miss_rotor",
+    "graze_hit_rotor",
+    "graze_hit_static",
+    "graze_hit_point",
+    "static_near_corner_1e-7",
+    "longer_than_minor",
+    "mass0.3_inertia0.05",
+    "point_ratio_1.5_spinning",
+]
 
 
 def _one_step_tolerance(name):
@@ -177,6 +187,7 @@ def test_equal_axes_orbits_match_stick_in_circle():
 # ---------------------------------------------------------------------------
 def _reflect_numerically(a, b, ell, mass, inertia, state, k):
     """Mass-metric reflection with ``grad_q F`` from mpmath's numerical differentiation."""
+
     def F(x, y, al):
         px, py = x + k * ell * mpmath.cos(al), y + k * ell * mpmath.sin(al)
         return (px / a) ** 2 + (py / b) ** 2 - 1

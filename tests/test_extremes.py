@@ -205,7 +205,7 @@ def check_flights(scene, state0, n=N_CHECKED):
             f"collision {j}: an end is {-g:.3g} (> tol {tol:.3g}) outside the wall during the flight "
             f"of {dt!r} from {s.tolist()}: a collision was missed"
         )
-        for end in ((1, -1) if k == 2 else (k,)):
+        for end in (1, -1) if k == 2 else (k,):
             g_end = float(_gap(R_, ell, new, 0.0, end))
             assert abs(g_end) <= tol, f"collision {j}: end {end} is not on the wall (gap {g_end:.3g})"
             if k != 2 and dt > 0.0:
@@ -219,8 +219,12 @@ def check_flights(scene, state0, n=N_CHECKED):
     step = float(np.max(np.abs(np.diff(E)))) / E0
     assert step <= PER_COLLISION, f"energy changed by {step:.3g} (relative) in one collision"
     if scene.kind == "rotor":
-        L = np.concatenate([[float(jb.angular_momentum(scene, jnp.asarray(state0)))],
-                            np.asarray(jb.angular_momentum(scene, jnp.asarray(states)))])
+        L = np.concatenate(
+            [
+                [float(jb.angular_momentum(scene, jnp.asarray(state0)))],
+                np.asarray(jb.angular_momentum(scene, jnp.asarray(states))),
+            ]
+        )
         step = float(np.max(np.abs(np.diff(L)))) / L_scale
         assert step <= PER_COLLISION, f"L changed by {step:.3g} (of its scale) in one collision"
     return states, np.array(dts), np.array(contacts), worst
@@ -471,8 +475,9 @@ def test_stick_nearly_a_diameter():
     scene = jb.StickInCircle(R=R, ell=ell)
     alpha = 0.4
     a, b = 5e-10, 1e-5  # centre along and across the stick, inside (R - ell = 2e-9, ...)
-    s0 = np.array([a * math.cos(alpha) - b * math.sin(alpha), a * math.sin(alpha) + b * math.cos(alpha),
-                   alpha, 0.6, 0.25, 0.3])
+    s0 = np.array(
+        [a * math.cos(alpha) - b * math.sin(alpha), a * math.sin(alpha) + b * math.cos(alpha), alpha, 0.6, 0.25, 0.3]
+    )
     full_check(scene, s0)
 
 
@@ -560,9 +565,7 @@ def _long_run(scene, state0, n):
     return jax.lax.fori_loop(0, n, body, init)
 
 
-@pytest.mark.parametrize(
-    "kind, n", [("lens", 10_000_000), ("rotor", 2_000_000)], ids=["lens-1e7", "rotor-2e6"]
-)
+@pytest.mark.parametrize("kind, n", [("lens", 10_000_000), ("rotor", 2_000_000)], ids=["lens-1e7", "rotor-2e6"])
 def test_long_run_drift_and_escape(kind, n):
     """The static lens (the cheapest meaningful scene: its map is a closed form,
     so 1e7 collisions take ~10 s) for 1e7 collisions, the spinning stick for 2e6.
@@ -665,7 +668,10 @@ def test_float64_disabled_is_refused_clearly():
     required behaviour is a clear refusal: an exception whose message names
     ``jax_enable_x64`` (or float64), from the scene or from the first call."""
     proc = subprocess.run(
-        [sys.executable, "-c", _NO_X64_SCRIPT], capture_output=True, text=True, timeout=300,
+        [sys.executable, "-c", _NO_X64_SCRIPT],
+        capture_output=True,
+        text=True,
+        timeout=300,
         env={**os.environ, "JAX_PLATFORMS": "cpu"},
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -678,6 +684,5 @@ def test_float64_disabled_is_refused_clearly():
         return
     for name in ("collide", "orbit", "collide_chain"):
         assert refused(out[name]), (
-            f"jb.{name} with jax_enable_x64 = False was not refused: {out[name]} "
-            "(it computes silently in float32)"
+            f"jb.{name} with jax_enable_x64 = False was not refused: {out[name]} (it computes silently in float32)"
         )

@@ -63,12 +63,12 @@ def test_summary_parameters_match_the_paper(quick_run):
     by_file = {}
     for name, panel in _panels(summary):
         by_file.setdefault(name, []).append(panel)
-    fig1, = by_file["fig1_trajectory.png"]
+    (fig1,) = by_file["fig1_trajectory.png"]
     assert (fig1["scene"]["R"], fig1["scene"]["ell"]) == (2.0, 1.0)
-    fig2, = by_file["fig2_projected_section.png"]
+    (fig2,) = by_file["fig2_projected_section.png"]
     assert (fig2["scene"]["R"], fig2["scene"]["ell"], fig2["orbits"]) == (2.0, 1.9, 2)
     assert fig2["orbit_kinds"] == ["regular", "chaotic"]
-    fig3, = by_file["fig3_lens_section.png"]
+    (fig3,) = by_file["fig3_lens_section.png"]
     assert (fig3["scene"]["ell"], fig3["scene"]["inertia"], fig3["scene"]["kind"]) == (1.5, "inf", "lens")
     assert [p["scene"]["ell"] for p in by_file["ell_scan.png"]] == [1.9, 1.5, 1.1, 0.5, 0.1]
     inertias = [p["scene"]["inertia"] / p["scene"]["ell"] ** 2 for p in by_file["inertia_scan.png"]]
@@ -108,8 +108,10 @@ def test_summary_numbers_match_a_direct_computation(quick_run):
         if scene.kind == "lens":
             assert panel["angular_momentum_drift"] is None
         else:
+
             def momentum(s):
                 return float(scene.mass) * (s[..., 0] * s[..., 4] - s[..., 1] * s[..., 3]) + spin * s[..., 5]
+
             scale = float(scene.R) * np.sqrt(2 * float(scene.mass) * e0)
             drift = np.max(np.abs(momentum(states) - momentum(states0)[:, None]) / scale[:, None])
             assert panel["angular_momentum_drift"] == pytest.approx(drift, rel=1e-9, abs=1e-16)
@@ -138,8 +140,9 @@ def test_demo_still_works(capsys):
 
 
 def test_console_command_offers_figures():
-    result = subprocess.run([sys.executable, "-m", "jaxbill.cli", "figures", "--help"],
-                            capture_output=True, text=True, check=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "jaxbill.cli", "figures", "--help"], capture_output=True, text=True, check=True
+    )
     assert "--out" in result.stdout and "--quick" in result.stdout
 
 
@@ -224,19 +227,23 @@ def test_walls_summary_numbers_match_a_direct_computation(quick_run):
             assert panel["several_contacts"] == int(np.sum(contact == 2))
             mass, inertia = float(scene.mass), float(scene.inertia)
             if states0.shape[1] == 12:
+
                 def energy(s):
                     return 0.5 * mass * np.sum(s[..., 6:9] ** 2, -1) + 0.5 * inertia * np.sum(s[..., 9:12] ** 2, -1)
 
                 def momentum(s):
                     return mass * (s[..., 0] * s[..., 7] - s[..., 1] * s[..., 6]) + inertia * s[..., 11]
+
                 unit = np.sqrt(2 * inertia * energy(states0))
                 low_end = states[..., 2] - float(scene.ell) * np.abs(states[..., 5])  # the lower end's height
             else:
+
                 def energy(s):
                     return 0.5 * mass * (s[..., 3] ** 2 + s[..., 4] ** 2) + 0.5 * inertia * s[..., 5] ** 2
 
                 def momentum(s):
                     return mass * s[..., 3]
+
                 unit = np.sqrt(2 * mass * energy(states0))
                 low_end = states[..., 1] - float(scene.ell) * np.abs(np.cos(states[..., 2]))
             assert panel["energy"] == pytest.approx(0.5, abs=1e-12)  # no horizontal motion: E = E'

@@ -58,7 +58,10 @@ NAN, INF = float("nan"), float("inf")
 R0, ELL0 = 2.0, 1.0
 GOOD = np.array([0.1, -0.2, 0.3, 0.7, 0.4, 0.5])  # valid for R = 2, ell = 1
 FUZZ = settings(
-    max_examples=40, deadline=None, derandomize=True, database=None,
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,
     phases=[Phase.explicit, Phase.generate],  # no shrinking: a failure reports its first example, fast
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
 )
@@ -80,7 +83,7 @@ def outcome(fn, *args, **kwargs):
         warnings.simplefilter("ignore")
         try:
             return "ok", fn(*args, **kwargs)
-        except Exception as error:  # noqa: BLE001 - the type is what is asserted
+        except Exception as error:  # the type is what is asserted
             return "raised", error
 
 
@@ -128,9 +131,12 @@ BAD_VALUES = [NAN, INF, -INF, -1.0, 0.0, -1e-300, "abc", "", 1 + 1j, 2 + 0j, obj
 def scene_arguments(draw):
     """``(kwargs, bad)``: parameters where the names in ``bad`` are invalid."""
     R = draw(st.sampled_from([2.0, 0.5, 7.0]))
-    kwargs = {"R": R, "ell": R * draw(st.sampled_from([0.15, 0.5, 0.999])),
-              "mass": draw(st.sampled_from([1.0, 0.2, 5.0])),
-              "inertia": draw(st.sampled_from([None, 0.3, 4.0, INF]))}
+    kwargs = {
+        "R": R,
+        "ell": R * draw(st.sampled_from([0.15, 0.5, 0.999])),
+        "mass": draw(st.sampled_from([1.0, 0.2, 5.0])),
+        "inertia": draw(st.sampled_from([None, 0.3, 4.0, INF])),
+    }
     n_bad = draw(st.integers(1, 2))
     names = draw(st.permutations(PARAMS))[:n_bad]
     for name in names:
@@ -186,11 +192,15 @@ def test_unvmapped_batch_of_scenes_is_refused_or_right(kind):
     inertia = INF if kind == "lens" else None
     scenes = jb.StickInCircle(R=np.array([2.0, 2.5]), ell=ell, inertia=inertia)
     state = GOOD * np.array([1, 1, 1, 1, 1, 0 if kind == "lens" else 1])
-    singles = [jb.StickInCircle(R=float(scenes.R[i]), ell=float(np.atleast_1d(scenes.ell)[i]), inertia=inertia)
-               for i in range(2)]
+    singles = [
+        jb.StickInCircle(R=float(scenes.R[i]), ell=float(np.atleast_1d(scenes.ell)[i]), inertia=inertia)
+        for i in range(2)
+    ]
     want = [np.asarray(jb.collide(single, state)[0]) for single in singles]
-    for name, call in (("collide", lambda: jb.collide(scenes, state)[0]),
-                       ("orbit", lambda: jb.orbit(scenes, state, 2).state[..., 0, :])):
+    for name, call in (
+        ("collide", lambda: jb.collide(scenes, state)[0]),
+        ("orbit", lambda: jb.orbit(scenes, state, 2).state[..., 0, :]),
+    ):
         k, res = outcome(call)
         if k == "raised":
             assert isinstance(res, ValueError) and any(w in str(res) for w in ("batch", "scene", "vmap")), (
@@ -288,8 +298,13 @@ def test_fuzz_bad_states_are_refused(case):
 
 @pytest.mark.parametrize(
     "state",
-    [np.resize(GOOD, (5,)), np.stack([GOOD, GOOD]), np.array([np.nan, *GOOD[1:]]), GOOD + 1j,
-     np.array([1.5, *GOOD[1:]])],
+    [
+        np.resize(GOOD, (5,)),
+        np.stack([GOOD, GOOD]),
+        np.array([np.nan, *GOOD[1:]]),
+        GOOD + 1j,
+        np.array([1.5, *GOOD[1:]]),
+    ],
     ids=["shape5", "batch", "nan", "complex", "outside"],
 )
 def test_check_refuses_bad_states(state):
@@ -304,8 +319,9 @@ def test_collide_with_a_batch_is_refused_or_right(kind):
     """``collide`` documents shape ``(6,)``; a ``(B, 6)`` batch must be refused with
     a ValueError naming the state, or give each row's own collision."""
     scene = scene_of(kind)
-    states = np.stack([valid_state(kind, [0.1, 0.3, 0.7, 0.2, 0.9, 0.5]),
-                       valid_state(kind, [0.6, 0.2, 0.4, 0.8, 0.1, 0.3])])
+    states = np.stack(
+        [valid_state(kind, [0.1, 0.3, 0.7, 0.2, 0.9, 0.5]), valid_state(kind, [0.6, 0.2, 0.4, 0.8, 0.1, 0.3])]
+    )
     for batch in (states, states[:1], states[:0]):
         k, res = outcome(jb.collide, scene, batch)
         if k == "raised":
@@ -320,7 +336,7 @@ def test_collide_with_a_batch_is_refused_or_right(kind):
 # counts: n, period, count
 # ---------------------------------------------------------------------------
 BAD_COUNTS = st.one_of(
-    st.integers(-10**6, -1),
+    st.integers(-(10**6), -1),
     st.floats(allow_nan=True, allow_infinity=True),
     st.booleans(),
     st.none(),
@@ -403,10 +419,21 @@ _HUGE_SCRIPT = textwrap.dedent(
 # beyond int64 are refused by everyone. (lyapunov_spectrum and
 # finite_time_lyapunov keep no per-collision results: for them 2**62 is a long
 # run, not an error, and is not asked for.)
-HUGE = [("orbit", 10**15), ("orbit", 2**62), ("orbit", 2**63), ("orbit", 2**64), ("orbit", 10**30),
-        ("check", 2**62), ("check", 2**64), ("find_periodic_orbit", 2**62), ("find_periodic_orbit", 2**64),
-        ("section_seeds", 2**62), ("section_seeds", 2**64),
-        ("lyapunov_spectrum", 2**64), ("finite_time_lyapunov", 2**64)]
+HUGE = [
+    ("orbit", 10**15),
+    ("orbit", 2**62),
+    ("orbit", 2**63),
+    ("orbit", 2**64),
+    ("orbit", 10**30),
+    ("check", 2**62),
+    ("check", 2**64),
+    ("find_periodic_orbit", 2**62),
+    ("find_periodic_orbit", 2**64),
+    ("section_seeds", 2**62),
+    ("section_seeds", 2**64),
+    ("lyapunov_spectrum", 2**64),
+    ("finite_time_lyapunov", 2**64),
+]
 
 
 HUGE_TIMEOUT_S = 20  # a correct refusal takes the import (~2 s) plus microseconds
@@ -422,8 +449,13 @@ def test_huge_counts_fail_cleanly():
     env = {**os.environ, "JAX_PLATFORMS": "cpu"}
     while remaining:
         try:
-            proc = subprocess.run([sys.executable, "-c", _HUGE_SCRIPT, json.dumps(remaining)],
-                                  capture_output=True, text=True, timeout=HUGE_TIMEOUT_S, env=env)
+            proc = subprocess.run(
+                [sys.executable, "-c", _HUGE_SCRIPT, json.dumps(remaining)],
+                capture_output=True,
+                text=True,
+                timeout=HUGE_TIMEOUT_S,
+                env=env,
+            )
             out, rc, err = proc.stdout, proc.returncode, proc.stderr[-300:]
         except subprocess.TimeoutExpired as e:
             out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
@@ -434,7 +466,7 @@ def test_huge_counts_fail_cleanly():
         if len(done) < len(remaining):
             stuck = remaining[len(done)]
             results[tuple(stuck)] = {"error": f"process ended: {rc}", "message": err}
-            remaining = remaining[len(done) + 1:]
+            remaining = remaining[len(done) + 1 :]
         else:
             remaining = []
     bad = {}
@@ -443,7 +475,8 @@ def test_huge_counts_fail_cleanly():
         if res["error"] == "ValueError" and (name != "orbit" or "n " in res["message"]):
             continue
         oom = res["error"] in ("JaxRuntimeError", "XlaRuntimeError", "MemoryError") and (
-            "RESOURCE_EXHAUSTED" in res["message"] or "memory" in res["message"].lower())
+            "RESOURCE_EXHAUSTED" in res["message"] or "memory" in res["message"].lower()
+        )
         if oom and n < 2**63:
             continue
         bad[f"{name}(n={n})"] = res
@@ -459,8 +492,9 @@ vmap_collide = jax.vmap(jb.collide, in_axes=(None, 0))
 
 
 def _poisoned(new, dt, contact):
-    return bool(np.all(np.isnan(np.asarray(new))) and np.all(np.isnan(np.asarray(dt)))
-                and np.all(np.asarray(contact) == 0))
+    return bool(
+        np.all(np.isnan(np.asarray(new))) and np.all(np.isnan(np.asarray(dt))) and np.all(np.asarray(contact) == 0)
+    )
 
 
 @st.composite
@@ -655,9 +689,11 @@ SECTION_FUNCTIONS = {
 
 
 @settings(FUZZ, max_examples=15)
-@given(st.sampled_from(list(SECTION_FUNCTIONS)),
-       st.lists(st.integers(1, 3), max_size=2),
-       st.integers(0, 12).filter(lambda k: k != 6))
+@given(
+    st.sampled_from(list(SECTION_FUNCTIONS)),
+    st.lists(st.integers(1, 3), max_size=2),
+    st.integers(0, 12).filter(lambda k: k != 6),
+)
 def test_fuzz_section_functions_reject_wrong_last_axis(name, lead, last):
     """A state is ``(..., 6)``; any other last axis is refused (JAX clamps
     out-of-range indices, so without a check ``state[..., 5]`` of a 3-vector

@@ -69,9 +69,7 @@ def _check_orbit(scene, mass, inertia, kind, state0, states, check_L=True):
     k = int(np.argmax(total))
     assert total[k] < LONG_RUN, f"energy drifted by {total[k]:.3g} (relative) by collision {k}"
     if check_L:
-        L = np.concatenate(
-            [[float(jb.angular_momentum(scene, s0))], np.asarray(jb.angular_momentum(scene, states))]
-        )
+        L = np.concatenate([[float(jb.angular_momentum(scene, s0))], np.asarray(jb.angular_momentum(scene, states))])
         scale = angular_momentum_scale(R, mass, inertia if kind == "rotor" else 0.0, E0)
         step = np.abs(np.diff(L)) / scale
         total = np.abs(L - L[0]) / scale
@@ -84,9 +82,7 @@ def _check_orbit(scene, mass, inertia, kind, state0, states, check_L=True):
 # ---------------------------------------------------------------------------
 # the invariants are the physical ones (so the conservation tests mean something)
 # ---------------------------------------------------------------------------
-@pytest.mark.parametrize(
-    "ell, mass, inertia", [(1.0, 1.0, None), (1.9, 2.5, 0.01), (1.5, 0.7, INF), (0.0, 1.3, None)]
-)
+@pytest.mark.parametrize("ell, mass, inertia", [(1.0, 1.0, None), (1.9, 2.5, 0.01), (1.5, 0.7, INF), (0.0, 1.3, None)])
 def test_invariants_are_the_physical_formulas(ell, mass, inertia):
     scene = make_scene(R, ell, mass, inertia)
     kind = kind_of(ell, inertia)
@@ -169,6 +165,11 @@ def test_batched_orbits_conserve_invariants(ell, inertia):
     assert orb.state.shape == (3, N_LONG, 6)
     for b in range(3):
         _check_orbit(
-            scene, mass, resolved_inertia(mass, ell, inertia), kind, states0[b], orb.state[b],
+            scene,
+            mass,
+            resolved_inertia(mass, ell, inertia),
+            kind,
+            states0[b],
+            orb.state[b],
             check_L=(kind != "lens"),
         )

@@ -27,7 +27,9 @@ REL = 1e-6
 CASES = {
     "rotor": (dict(R=2.0, ell=1.0), [0.1, -0.2, 0.3, 0.6, 0.5, 0.7], ("R", "ell", "inertia")),
     "rotor_light": (
-        dict(R=2.0, ell=1.9, inertia=1.9**2 / 100), [0.01, -0.02, 0.3, 0.6, 0.5, 0.7], ("R", "ell", "inertia")
+        dict(R=2.0, ell=1.9, inertia=1.9**2 / 100),
+        [0.01, -0.02, 0.3, 0.6, 0.5, 0.7],
+        ("R", "ell", "inertia"),
     ),
     "lens": (dict(R=2.0, ell=1.5, inertia=float("inf")), [0.1, -0.2, 0.3, 0.6, 0.5, 0.0], ("R", "ell")),
     "circle": (dict(R=2.0, ell=0.0), [0.1, -0.2, 0.3, 0.6, 0.5, 0.7], ("R",)),

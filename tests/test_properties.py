@@ -183,8 +183,12 @@ def run_and_check(R, ell, mass, inertia, state0, n=N_COLLISIONS):
 # ---------------------------------------------------------------------------
 # random scenes and states
 # ---------------------------------------------------------------------------
-@settings(max_examples=100, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@settings(
+    max_examples=100,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 @given(params=scene_params(), u=unit_six(), speed=st.floats(0.1, 10.0), spin=st.floats(0.0, 30.0))
 def test_no_missed_collision_and_every_collision_is_real(params, u, speed, spin):
     R, ell, mass, inertia = params
@@ -236,7 +240,9 @@ def _reference_first_crossing(R, ell, s, t_hi):
         Rm, lm = mpmath.mpf(R), mpmath.mpf(ell)
 
         def gap(t):
-            return Rm**2 - (x + vx * t + lm * mpmath.cos(a + w * t)) ** 2 - (y + vy * t + lm * mpmath.sin(a + w * t)) ** 2
+            end_x = x + vx * t + lm * mpmath.cos(a + w * t)
+            end_y = y + vy * t + lm * mpmath.sin(a + w * t)
+            return Rm**2 - end_x**2 - end_y**2
 
         lo, hi = mpmath.mpf(0), mpmath.mpf(t_hi)
         assert gap(lo) > 0 and gap(hi) < 0
@@ -264,7 +270,7 @@ def test_grazing_hit_is_found(R, ell, w, vy, tau, eps):
     """P1 pokes ``eps R`` beyond the wall: jaxbill must stop at the first crossing,
     just before the extremum, not step over the near-double root."""
     s0 = _grazing_state(R, ell, w, vy, eps, tau)
-    (dt, contact, _), = run_and_check(R, ell, 1.0, None, s0, n=1)
+    ((dt, contact, _),) = run_and_check(R, ell, 1.0, None, s0, n=1)
     assert contact == 1
     t_ref, slope = _reference_first_crossing(R, ell, s0, tau)
     # a gap known to ~100 ulps of R^2 fixes the root to 100 eps R^2 / |gap'|
@@ -281,7 +287,7 @@ def test_grazing_miss_is_walked_past(R, ell, w, vy, tau, eps):
     # sanity of the construction: the closest approach really is |eps| R inside
     f_peak = float(np.sqrt(_f(ell, s0, tau, 1)))
     assert abs(f_peak - R * (1 + eps)) < 1e-14 * R
-    (dt, _, _), = run_and_check(R, ell, 1.0, None, s0, n=1)
+    ((dt, _, _),) = run_and_check(R, ell, 1.0, None, s0, n=1)
     # no collision within the graze: past the extremum P1 recedes, so the next
     # collision is at least a fraction of a turn later
     assert dt > tau + 0.05 / w, f"false hit at the near miss: dt = {dt!r}, graze at {tau}"

@@ -67,7 +67,7 @@ def _reference(c):
     return times, states, list(c["contacts"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _jaxbill_orbit(name):
     jb = pytest.importorskip("jaxbill")
     import jax.numpy as jnp
@@ -157,13 +157,10 @@ def test_one_step_map_matches_reference(name):
     prev_state, prev_t, bounced = list(c["state0"]), 0.0, ()
     for j in range(c["n"]):
         assert np.all(np.isfinite(s[j])) and np.isfinite(t[j]) and k[j] != 0, (
-            f"collision {j}: jaxbill returned t={t[j]}, contact={k[j]}, state={s[j]} "
-            f"from state {prev_state!r}"
+            f"collision {j}: jaxbill returned t={t[j]}, contact={k[j]}, state={s[j]} from state {prev_state!r}"
         )
         with mp.workdps(30):
-            rt, rs, rk = ref.reference_orbit(
-                R, ell, mass, inertia, prev_state, 1, dps=40, bounced=bounced
-            )
+            rt, rs, rk = ref.reference_orbit(R, ell, mass, inertia, prev_state, 1, dps=40, bounced=bounced)
             dt_lib = mpf(t[j]) - mpf(prev_t)
             e_t = float(abs(dt_lib - rt[0])) / T
             e_s = gen.collision_errors([0.0], [list(s[j])], [0.0], rs, sc)[0]
@@ -186,8 +183,10 @@ def test_cache_reproduces_from_generator():
         assert fresh["contacts"] == c["contacts"], case["name"]
         with mp.workdps(30):
             e = gen.collision_errors(
-                [mpf(v) for v in fresh["times"]], [[mpf(v) for v in r] for r in fresh["states"]],
-                *_reference(c)[:2], _scales(c),
+                [mpf(v) for v in fresh["times"]],
+                [[mpf(v) for v in r] for r in fresh["states"]],
+                *_reference(c)[:2],
+                _scales(c),
             )
         assert max(e) < 1e-20, case["name"]
 

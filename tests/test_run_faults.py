@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill import Section, _run_files, _run_guard, _streaming, run
 from helpers import random_states
+from jaxbill import Section, _run_files, _run_guard, _streaming, run
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TIMEOUT_S = 180
@@ -59,8 +59,13 @@ def _environment() -> dict:
 
 
 def _start(script: str, *args) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(script), HERE, *map(str, args)],
-                            env=_environment(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", textwrap.dedent(script), HERE, *map(str, args)],
+        env=_environment(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _finish(process: subprocess.Popen) -> tuple[str, str]:
@@ -240,8 +245,9 @@ def test_a_full_disk_is_an_error_never_a_signal(small_disk):
     assert f"holds collision {checkpoint.collisions}," in message
 
     subprocess.run(["mount", "-o", "remount,size=16m", "tmpfs", str(small_disk)], check=True)
-    resumed = run(scene(), state_for(1), DISK_N, record=DISK_SECTION, chunk=DISK_CHUNK,
-                  out=small_disk / "section", resume=True)
+    resumed = run(
+        scene(), state_for(1), DISK_N, record=DISK_SECTION, chunk=DISK_CHUNK, out=small_disk / "section", resume=True
+    )
     whole = run(scene(), state_for(1), DISK_N, record=DISK_SECTION, chunk=DISK_CHUNK)
     for field in ("point", "t", "collision"):
         np.testing.assert_array_equal(getattr(resumed.section, field), getattr(whole.section, field), err_msg=field)

@@ -156,8 +156,15 @@ def test_reduced_coordinates_are_the_same_before_and_after_an_impulse():
     before = np.asarray(reduced_section(ROTOR, incoming_states(orb.state, states0)))
     np.testing.assert_allclose(before, after, atol=1e-12)
     # ... while the paper's projection changes (L_z of the centre takes the torque)
-    assert np.max(np.abs(np.asarray(paper_section(ROTOR, incoming_states(orb.state, states0)))
-                         - np.asarray(paper_section(ROTOR, orb.state)))) > 0.01
+    assert (
+        np.max(
+            np.abs(
+                np.asarray(paper_section(ROTOR, incoming_states(orb.state, states0)))
+                - np.asarray(paper_section(ROTOR, orb.state))
+            )
+        )
+        > 0.01
+    )
 
 
 def test_section_functions_vmap_and_jit():

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._sharding import orbit_mesh, orbit_sharded, pad_batch, padded_batch_size
-from jaxbill import run
 from helpers import random_states
+from jaxbill import run
+from jaxbill._sharding import orbit_mesh, orbit_sharded, pad_batch, padded_batch_size
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 # The sizes of tests/test_streaming.py, so that in one pytest session the
@@ -118,7 +118,7 @@ def test_two_host_devices_give_bitwise_the_results_of_one():
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT"))
-    out = json.loads(line[len("RESULT"):])
+    out = json.loads(line[len("RESULT") :])
     assert out["devices"] == 2
     for kind in ("rotor", "lens"):
         failed = [check for check, ok in out[kind].items() if not ok]

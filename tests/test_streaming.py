@@ -15,9 +15,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill import _streaming
-from jaxbill import Section, run
 from helpers import random_states
+from jaxbill import Section, _streaming, run
 
 INF = float("inf")
 N = 120  # collisions per orbit in most tests

@@ -34,7 +34,6 @@ import pytest
 
 import jaxbill as jb
 from helpers import (
-    angle_diff,
     config_error,
     kind_of,
     make_scene,
@@ -192,7 +191,8 @@ def test_vmap_and_batch_equal_single_runs(ell, inertia):
             same = np.maximum.accumulate(config_error(s1, s2, R)) < 1e-6
             assert same[:5].all()
             np.testing.assert_array_equal(
-                np.asarray(one.contact)[same], np.asarray(other.contact[b])[same],
+                np.asarray(one.contact)[same],
+                np.asarray(other.contact[b])[same],
                 err_msg=f"{name}: contacts differ while the orbits still agree",
             )
 
@@ -251,7 +251,7 @@ def test_vmap_and_batch_bitwise_equal_single_runs_without_fma_differences():
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT"))
-    out = json.loads(line[len("RESULT"):])
+    out = json.loads(line[len("RESULT") :])
     for kind in ("rotor", "lens", "circle"):
         assert out[kind] == [True] * 6, f"{kind}: vmap/batched vs single not bitwise equal: {out[kind]}"
     assert out["scenes"] == [True] * 4, out["scenes"]

@@ -31,7 +31,7 @@ from jaxbill._collision import _collide
 from jaxbill._tangent import dynamical_indices, phase_velocity, tangent_map
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import dph_reference as dph  # noqa: E402
+import dph_reference as dph
 
 SCENES = {
     "rotor_ell1": dict(R=2.0, ell=1.0),

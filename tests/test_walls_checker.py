@@ -38,7 +38,10 @@ def _state3(c, u, v, w):
 
 
 def _xz(x, z, th, vx, vz, om):
-    """The 2D state [x, z, th, vx, vz, om] embedded in the x-z plane (the embedding in ``StickBetweenWalls3D``'s docstring)."""
+    """The 2D state [x, z, th, vx, vz, om] embedded in the x-z plane.
+
+    The embedding is the one in ``StickBetweenWalls3D``'s docstring.
+    """
     return np.array([x, 0.0, z, math.sin(th), 0.0, math.cos(th), vx, 0.0, vz, 0.0, om, 0.0])
 
 
@@ -49,27 +52,36 @@ CASES = {
     "3d-xz-plane": (jb.StickBetweenWalls3D(h=3.0, ell=1.0), _xz(0.1, 1.5, 0.3, 0.2, 0.7, 0.9), 10),
     "3d-curved": (
         jb.StickBetweenWalls3D(h=3.0, ell=1.0),
-        _state3([0.1, 0.2, 1.5], [0.3, 0.4, 0.8], [0.2, -0.1, 0.7], [0.5, -0.6, 0.4]), 5,
+        _state3([0.1, 0.2, 1.5], [0.3, 0.4, 0.8], [0.2, -0.1, 0.7], [0.5, -0.6, 0.4]),
+        5,
     ),
     # sin(psi_min) = |w_z|/|w| = 1e-3: the stick passes 1e-3 rad from vertical every half turn.
     "near-vertical": (
         jb.StickBetweenWalls3D(h=3.0, ell=1.0),
-        _state3([0.0, 0.0, 1.5], [math.sin(_TILT), 0.0, math.cos(_TILT)], [0.1, 0.0, 0.6],
-                [-0.02 * math.cos(_TILT), 1.0, 0.02 * math.sin(_TILT)]), 5,
+        _state3(
+            [0.0, 0.0, 1.5],
+            [math.sin(_TILT), 0.0, math.cos(_TILT)],
+            [0.1, 0.0, 0.6],
+            [-0.02 * math.cos(_TILT), 1.0, 0.02 * math.sin(_TILT)],
+        ),
+        5,
     ),
     # I = M ell^2 / 100: spins up to ~15 rad per flight, passing 0.035 rad from vertical.
     "light": (
         jb.StickBetweenWalls3D(h=3.0, ell=1.0, mass=0.2, inertia=0.002),
-        _state3([0.1, 0.2, 1.5], [0.3, 0.4, 0.8], [0.2, -0.1, 0.7], [0.5, -0.6, 0.4]), 5,
+        _state3([0.1, 0.2, 1.5], [0.3, 0.4, 0.8], [0.2, -0.1, 0.7], [0.5, -0.6, 0.4]),
+        5,
     ),
     "2ell>h": (
         jb.StickBetweenWalls3D(h=1.5, ell=1.0),
-        _state3([0.1, 0.2, 0.75], [0.8, 0.3, 0.2], [0.2, -0.1, 0.7], [0.3, -0.6, 0.4]), 10,
+        _state3([0.1, 0.2, 0.75], [0.8, 0.3, 0.2], [0.2, -0.1, 0.7], [0.3, -0.6, 0.4]),
+        10,
     ),
     # |w| ell / |v| ~ 40: thousands of solver steps per orbit, tens of radians per flight.
     "fast-spin": (
         jb.StickBetweenWalls3D(h=3.0, ell=1.0),
-        _state3([0.1, 0.2, 1.5], [0.3, 0.4, 0.8], [0.2, -0.1, 0.7], [15.0, -20.0, 8.0]), 5,
+        _state3([0.1, 0.2, 1.5], [0.3, 0.4, 0.8], [0.2, -0.1, 0.7], [15.0, -20.0, 8.0]),
+        5,
     ),
 }
 # A nearly horizontal stick spinning about z: curved flights (L_spin != 0) on a
@@ -127,8 +139,16 @@ def test_regular_orbit_agrees_over_all_collisions():
 
 def _settings(**kw):
     base = dict(
-        solver=diffrax.Dopri8(), rtol=1e-12, atol=1e-14, root_tol=1e-12, chunk_steps=1024, max_steps=2**20,
-        corner_tol=1e-12, graze_tol=1e-6, coarse_turn=0.5, pole_tol=1e-5,
+        solver=diffrax.Dopri8(),
+        rtol=1e-12,
+        atol=1e-14,
+        root_tol=1e-12,
+        chunk_steps=1024,
+        max_steps=2**20,
+        corner_tol=1e-12,
+        graze_tol=1e-6,
+        coarse_turn=0.5,
+        pole_tol=1e-5,
     )
     base.update(kw)
     return wc._Settings(**base)
@@ -163,8 +183,13 @@ def test_mass_weighted_reflection_is_the_impulse_law(gap):
     assert abs(float(scene.gaps(jnp.asarray(state))[gap])) < 1e-15
     y, vxy, spin, _ = wc._from_3d(state, inertia, False)
     core = wc._Reduced(
-        h=jnp.asarray(h), ell=jnp.asarray(ell), mass=jnp.asarray(mass), inertia=jnp.asarray(inertia),
-        spin=jnp.asarray(spin), vxy=jnp.asarray(vxy), frozen=False,
+        h=jnp.asarray(h),
+        ell=jnp.asarray(ell),
+        mass=jnp.asarray(mass),
+        inertia=jnp.asarray(inertia),
+        spin=jnp.asarray(spin),
+        vxy=jnp.asarray(vxy),
+        frozen=False,
     )
     reflected = wc._to_3d(np.asarray(core.reflect(jnp.asarray(gap), jnp.asarray(y))), vxy, spin, inertia)
     expected = np.asarray(scene.kick(jnp.asarray(state), gap))
@@ -218,8 +243,12 @@ def test_flat_landing_is_flagged_as_corner():
 def test_too_close_to_the_pole_is_flagged():
     scene = jb.StickBetweenWalls3D(h=3.0, ell=1.0)
     a = 2e-5  # sin(psi_min) = |w_z| / |w| = 1e-6
-    state0 = _state3([0.0, 0.0, 1.5], [math.sin(_TILT), 0.0, math.cos(_TILT)], [0.1, 0.0, 0.6],
-                     [-a * math.cos(_TILT), 1.0, a * math.sin(_TILT)])
+    state0 = _state3(
+        [0.0, 0.0, 1.5],
+        [math.sin(_TILT), 0.0, math.cos(_TILT)],
+        [0.1, 0.0, 0.6],
+        [-a * math.cos(_TILT), 1.0, a * math.sin(_TILT)],
+    )
     report = check_walls(scene, state0, N, local="none").report
     assert report.flags and report.flags[0].kind == "pole" and report.n_checked == 0, str(report)
 
@@ -250,8 +279,11 @@ def test_a_wrong_reference_is_caught(monkeypatch):
     def late(scene_, s, n):
         o = real(scene_, s, n)
         if np.ndim(s) == 1:
-            o = jb.Orbit(t=o.t.at[10].add(1e-7 * 3.0 / math.sqrt(2 * float(scene.energy(jnp.asarray(s))))),
-                         contact=o.contact, state=o.state)
+            o = jb.Orbit(
+                t=o.t.at[10].add(1e-7 * 3.0 / math.sqrt(2 * float(scene.energy(jnp.asarray(s))))),
+                contact=o.contact,
+                state=o.state,
+            )
         return o
 
     monkeypatch.setattr(wc, "_orbit", late)

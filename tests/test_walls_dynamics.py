@@ -79,7 +79,10 @@ def _next_contact(scene, s):
 
 
 def embed(state2d) -> np.ndarray:
-    """The 2D state ``[x, z, th, vx, vz, om]`` as a 3D state in the x-z plane (the embedding in ``StickBetweenWalls3D``'s docstring)."""
+    """The 2D state ``[x, z, th, vx, vz, om]`` as a 3D state in the x-z plane.
+
+    The embedding is the one in ``StickBetweenWalls3D``'s docstring.
+    """
     x, z, th, vx, vz, om = np.asarray(state2d, dtype=np.float64)
     return np.array([x, 0.0, z, np.sin(th), 0.0, np.cos(th), vx, 0.0, vz, 0.0, om, 0.0])
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import os
 import sys
 
@@ -95,8 +94,17 @@ def test_cases_cover_the_brief():
     for kind in ("2D", "3D"):
         names = [n.split("/")[1] for n in _names(kind)]
         assert len(names) >= 12
-        for needed in ("generic", "kink", "h_just_above_2ell", "h_just_below_2ell", "fast_spin_1e3",
-                       "vertical_bounce", "inertia_inf", "light_I_div100", "graze_miss_1e-9"):
+        for needed in (
+            "generic",
+            "kink",
+            "h_just_above_2ell",
+            "h_just_below_2ell",
+            "fast_spin_1e3",
+            "vertical_bounce",
+            "inertia_inf",
+            "light_I_div100",
+            "graze_miss_1e-9",
+        ):
             assert any(n.startswith(needed) for n in names), (kind, needed)
     for needed in ("3D/xz_plane_generic_a", "3D/generic_Lz_a", "3D/nearly_vertical"):
         assert needed in DATA
@@ -142,7 +150,7 @@ def test_cached_orbit_conserves_and_touches(name):
         E0 = E(s0)
         V = mpmath.sqrt(2 * E0 / M)
         W = V / hm + (0 if inf_I else mpmath.sqrt(2 * E0 / I))  # spin scale
-        for j, (t, k, s) in enumerate(zip(times, contacts, states)):
+        for j, (k, s) in enumerate(zip(contacts, states)):
             assert abs(E(s) - E0) <= mpf("1e-22") * E0, j
             if kind == "2D":
                 assert abs(s[3] - s0[3]) <= mpf("1e-22") * V, j
@@ -221,7 +229,7 @@ def _mp_gap_and_derivs(kind, h, ell, s, i, t):
             cs, sn = mpmath.cos(om * t), mpmath.sin(om * t)
             uz = u[2] * cs + qz * sn
             duz = om * (qz * cs - u[2] * sn)
-            dduz = -om**2 * uz
+            dduz = -(om**2) * uz
         zz = s[2] + s[8] * t + e * ell * uz
         d1 = s[8] + e * ell * duz
         d2 = e * ell * dduz
@@ -361,8 +369,17 @@ def _reverse(kind, s):
 
 
 @pytest.mark.parametrize(
-    "name", ["2D/generic_a", "2D/h_just_below_2ell", "2D/kink_rotating", "2D/graze_miss_1e-9",
-             "3D/generic_Lz_a", "3D/nearly_vertical", "3D/kink_flat_spinning", "3D/fast_spin_1e3"],
+    "name",
+    [
+        "2D/generic_a",
+        "2D/h_just_below_2ell",
+        "2D/kink_rotating",
+        "2D/graze_miss_1e-9",
+        "3D/generic_Lz_a",
+        "3D/nearly_vertical",
+        "3D/kink_flat_spinning",
+        "3D/fast_spin_1e3",
+    ],
 )
 def test_reference_time_reversal(name):
     """From the middle of flight n-1 -> n, reversing v and the angular
@@ -639,8 +656,13 @@ def test_cache_reproduces_from_generator(name):
     with mp.workdps(30):
         phi = gen.turned(c["kind"], c["state0"], times, states)
         e = gen.collision_errors(
-            c["kind"], [mpf(v) for v in fresh["times"]], [[mpf(v) for v in r] for r in fresh["states"]],
-            times, states, _scales(c), phi,
+            c["kind"],
+            [mpf(v) for v in fresh["times"]],
+            [[mpf(v) for v in r] for r in fresh["states"]],
+            times,
+            states,
+            _scales(c),
+            phi,
         )
     assert max(e) < 1e-20
 
@@ -655,7 +677,7 @@ def _scene(c):
     return jb, cls(c["h"], c["ell"], mass=c["mass"], inertia=_inertia(c))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _jaxbill_orbit(name):
     c = DATA[name]
     jb, scene = _scene(c)

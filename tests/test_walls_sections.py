@@ -28,12 +28,12 @@ import pytest
 
 import jaxbill as jb
 from jaxbill._walls_sections import (
+    flight_paths,
     floor_section,
     floor_section_bound,
     floor_seed_points,
     floor_seeds,
     floor_state,
-    flight_paths,
     reduced_wall_section,
     theta_z_path,
     wall_twin_distances,
@@ -355,8 +355,9 @@ def _check_map(scene, x0, energy, spin=0.0):
     jac, y = _floor_map_jacobian(scene, jnp.asarray(x0), k, energy, spin)
     orb = jb.orbit(scene, state0, 40)
     section = reduced_wall_section if scene.state_size == 12 else floor_section
-    np.testing.assert_allclose(np.asarray(y), np.asarray(section(scene, orb.state[k - 1], orb.contact[k - 1])),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(y), np.asarray(section(scene, orb.state[k - 1], orb.contact[k - 1])), rtol=0, atol=1e-12
+    )
     return np.asarray(jac), np.asarray(y), state0
 
 
@@ -392,11 +393,17 @@ def test_floor_map_preserves_area_in_theta_p_only(h, inertia):
 
         q0 = q_of_p(jnp.asarray(x0))
         np.testing.assert_allclose(np.asarray(p_of_q(q0)), x0, atol=1e-14)  # the charts are each other's inverses
-        det_q = (np.linalg.det(np.asarray(jax.jacfwd(q_of_p)(jnp.asarray(y)))) * np.linalg.det(jac)
-                 * np.linalg.det(np.asarray(jax.jacfwd(p_of_q)(q0))))
+        det_q = (
+            np.linalg.det(np.asarray(jax.jacfwd(q_of_p)(jnp.asarray(y))))
+            * np.linalg.det(jac)
+            * np.linalg.det(np.asarray(jax.jacfwd(p_of_q)(q0)))
+        )
         s0 = sigma_of_p(jnp.asarray(x0))
-        det_sigma = (np.linalg.det(np.asarray(jax.jacfwd(sigma_of_p)(jnp.asarray(y)))) * np.linalg.det(jac)
-                     * np.linalg.det(np.asarray(jax.jacfwd(p_of_sigma)(s0))))
+        det_sigma = (
+            np.linalg.det(np.asarray(jax.jacfwd(sigma_of_p)(jnp.asarray(y))))
+            * np.linalg.det(jac)
+            * np.linalg.det(np.asarray(jax.jacfwd(p_of_sigma)(s0)))
+        )
         # Birkhoff's sine goes with the arc length ds = |T| dtheta: the determinant is |T(theta)| / |T(theta')|
         t_ratio = math.sqrt(1 + float(slope(x0[0])) ** 2) / math.sqrt(1 + float(slope(y[0])) ** 2)
         assert det_sigma == pytest.approx(t_ratio, rel=1e-9)
@@ -429,8 +436,12 @@ def test_ergodic_orbit_has_the_uniform_measure_of_theta_p():
     counts, _ = np.histogram(pts[:, 0], edges)
     fine = np.linspace(0, np.pi, 8001)
     weight = np.sqrt(1 + np.sin(fine) ** 2)
-    expected = np.array([np.trapezoid(weight[(fine >= a) & (fine <= b)], fine[(fine >= a) & (fine <= b)])
-                         for a, b in zip(edges[:-1], edges[1:])])
+    expected = np.array(
+        [
+            np.trapezoid(weight[(fine >= a) & (fine <= b)], fine[(fine >= a) & (fine <= b)])
+            for a, b in zip(edges[:-1], edges[1:])
+        ]
+    )
     expected /= expected.sum()
     np.testing.assert_allclose(counts / counts.sum(), expected, rtol=0.06)
     # and, at fixed theta, p is uniform: the mean of |p| / |T| is 1/2
@@ -463,10 +474,11 @@ def test_3d_section_at_zero_lz_equals_the_2d_section(h):
         steps = [jb.collide(s3, jnp.asarray(state)) for state in states3[:m]]
         new3 = np.stack([np.asarray(step[0]) for step in steps])
         c3 = np.array([int(step[2]) for step in steps])
-        assert np.array_equal(c3, contacts[1:m + 1])
+        assert np.array_equal(c3, contacts[1 : m + 1])
         sec3_next = np.asarray(reduced_wall_section(s3, new3, c3))
-        np.testing.assert_allclose(sec3_next[on_floor[1:m + 1]], expected[1:m + 1][on_floor[1:m + 1]],
-                                   rtol=0, atol=1e-10)
+        np.testing.assert_allclose(
+            sec3_next[on_floor[1 : m + 1]], expected[1 : m + 1][on_floor[1 : m + 1]], rtol=0, atol=1e-10
+        )
 
 
 # -- the reduced picture's flights ----------------------------------------------------
