@@ -42,7 +42,7 @@ _settings: dict[str, str] = {}
 
 def _backend_started() -> bool:
     try:
-        from jax._src import xla_bridge  # noqa: PLC0415 (private: read-only use, guarded)
+        from jax._src import xla_bridge  # private: read-only use, guarded
 
         return bool(xla_bridge.backends_are_initialized())
     except (ImportError, AttributeError):  # a JAX without this helper: assume the worst
@@ -59,7 +59,8 @@ def _cores() -> int:
 def configure() -> None:
     """Make both settings where the user has not and the backend has not started (see the module docstring)."""
     if os.environ.get("JAXBILL_NO_XLA_SETTINGS"):
-        _settings.update(small_loops="not set (JAXBILL_NO_XLA_SETTINGS)", cpu_devices="not set (JAXBILL_NO_XLA_SETTINGS)")
+        not_set = "not set (JAXBILL_NO_XLA_SETTINGS)"
+        _settings.update(small_loops=not_set, cpu_devices=not_set)
         return
     if _backend_started():
         late = "not set: JAX's backend had started before jaxbill was imported"
@@ -76,7 +77,8 @@ def configure() -> None:
     user_chose_devices = (
         "xla_force_host_platform_device_count" in flags
         or "JAX_NUM_CPU_DEVICES" in os.environ
-        or jax.config.jax_num_cpu_devices != -1
+        # jax declares its options as dynamic attributes, which pyright cannot see
+        or jax.config.jax_num_cpu_devices != -1  # pyright: ignore[reportAttributeAccessIssue]
     )
     if user_chose_devices:
         _settings["cpu_devices"] = "left to the user's choice"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from . import _lanes as lanes
 from ._scene import NO_CONTACT, SEVERAL_CONTACTS, Scene
@@ -34,9 +35,9 @@ class Orbit(eqx.Module):
             (``S = scene.state_size``).
     """
 
-    t: jax.Array
-    contact: jax.Array
-    state: jax.Array
+    t: Float[Array, "*batch n"]
+    contact: Int[Array, "*batch n"]
+    state: Float[Array, "*batch n S"]
 
 
 def step_function(scene: Scene, state0: jax.Array):
@@ -60,7 +61,7 @@ def _collide(scene: Scene, state: jax.Array):
     return _poison_if(~scene.is_valid(state), *step_function(scene, state)(state))
 
 
-def collide(scene: Scene, state: jax.Array):
+def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
     """The collision map: from ``state`` to the state just after the next collision.
 
     Args:
@@ -122,7 +123,8 @@ def collide(scene: Scene, state: jax.Array):
     too (``ValueError``); ``RuntimeError`` if ``jax_enable_x64`` is off.
     """
     _check_eagerly(scene, state, single=True)
-    return _collide_jit(scene, jnp.asarray(state, dtype=jnp.float64))
+    new_state, dt, contact = _collide_jit(scene, jnp.asarray(state, dtype=jnp.float64))
+    return new_state, dt, contact
 
 
 _collide_jit = eqx.filter_jit(_collide)
@@ -193,7 +195,7 @@ def _orbit_jit(scene, state0, n, driver="lockstep"):
     return _orbit_batch(scene, state0, n, driver)
 
 
-def orbit(scene: Scene, state0: jax.Array, n: int, *, driver: str | None = None) -> Orbit:
+def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver: str | None = None) -> Orbit:
     """The first ``n`` collisions of the orbit from ``state0``.
 
     Args:

@@ -35,7 +35,8 @@ The loop is bounded by ``max_steps``; a search that hits the bound reports it
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp

@@ -118,6 +118,8 @@ def _record(plan: Plan, scene, records, collided, number, start, carry: Carry, c
             states.at[row].set(carry.state, mode="drop"),
         )
     point, t, numbers, fill = records
+    if plan.where is None:
+        raise ValueError(f"a {plan.record!r} plan records every collision, not a section")
     kept = collided & jnp.asarray(plan.where(scene, carry.state, contact), dtype=bool)
     row = jnp.where(kept, jnp.minimum(fill, plan.rows), plan.rows + 1)
     return (
@@ -200,7 +202,7 @@ def fresh_carry(scene, states0: jax.Array) -> Carry:
     )
 
 
-def run_blocks(plan: Plan, width: int | None):
+def run_blocks(plan: Plan, width: int | None) -> Callable[..., Any]:
     """``run_block`` for a batch whose size is a multiple of ``width``: blocks of ``width`` lanes, one after another.
 
     ``width = None``: the whole batch in one block, as on a GPU, which needs
@@ -216,7 +218,7 @@ def run_blocks(plan: Plan, width: int | None):
             return a.reshape(a.shape[0] // width, width, *a.shape[1:])
 
         out = jax.lax.map(
-            lambda block: run_block(plan, scene, *block, start, steps),
+            lambda block: run_block(plan, scene, block[0], block[1], start, steps),
             (as_blocks(states0), jax.tree.map(as_blocks, carry)),
         )
         return jax.tree.map(lambda a: a.reshape(a.shape[0] * a.shape[1], *a.shape[2:]), out)

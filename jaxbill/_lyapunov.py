@@ -6,6 +6,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from ._collision import _check_eagerly, _poison_if
 from ._scene import Scene
@@ -35,11 +36,11 @@ class LyapunovSpectrum(eqx.Module):
     ``time / n`` are per-collision exponents and conversely.
     """
 
-    exponents: jax.Array
-    history: jax.Array
-    collisions: jax.Array
-    times: jax.Array
-    time: jax.Array
+    exponents: Float[Array, "*batch K"]
+    history: Float[Array, "*batch H K"]
+    collisions: Int[Array, "*batch H"]
+    times: Float[Array, "*batch H"]
+    time: Float[Array, "*batch"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
 
@@ -113,7 +114,7 @@ def _spectrum_jit(scene, state0, n, per, qr_every, n_history, frame0):
 
 def lyapunov_spectrum(
     scene: Scene,
-    state0: jax.Array,
+    state0: Float[ArrayLike, "*batch S"],
     n: int,
     *,
     per: str = "time",

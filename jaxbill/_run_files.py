@@ -28,6 +28,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from jaxtyping import Float, Int
 
 CHECKPOINT_NAME = "checkpoint.npz"
 STATE_RECORD_NAMES = ("t", "contact", "state")
@@ -85,14 +86,14 @@ class Checkpoint:
             begin (0, unless the directory continues a checkpoint of another run).
     """
 
-    state0: np.ndarray
-    state: np.ndarray
-    time: np.ndarray
-    max_energy_error: np.ndarray
-    contact_counts: np.ndarray
-    contact_codes: np.ndarray
+    state0: Float[np.ndarray, "*batch S"]
+    state: Float[np.ndarray, "*orbits S"]
+    time: Float[np.ndarray, "*orbits"]
+    max_energy_error: Float[np.ndarray, "*orbits"]
+    contact_counts: Int[np.ndarray, "*orbits codes"]
+    contact_codes: Int[np.ndarray, " C"]
     collisions: int
-    orbit_index: np.ndarray | None
+    orbit_index: Int[np.ndarray, " orbits"] | None
     scene_signature: str
     scene_parameters: tuple
     record: str

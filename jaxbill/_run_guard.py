@@ -25,7 +25,10 @@ import signal
 import socket
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
+from types import FrameType
+from typing import Any
 
 import jax
 import numpy as np
@@ -202,7 +205,8 @@ class StopSignals:
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
-        self.previous: dict[int, object] = {}  # signal -> the handler before ours
+        # signal -> the handler before ours, as signal.getsignal gives it
+        self.previous: dict[int, Callable[[int, FrameType | None], Any] | int | signal.Handlers | None] = {}
         self.active = False
         self.requested: int | None = None
         self.handled = False  # stop() has acted on the request
@@ -240,6 +244,8 @@ class StopSignals:
     def stop(self, message: str, out: Path, collisions: int):
         """Restore the previous handlers, run the user's own one, then raise for the signal received."""
         number, self.handled = self.requested, True
+        if number is None:
+            raise RuntimeError("StopSignals.stop: no signal was received")
         self.restore()
         user = self.previous.get(number)
         if callable(user) and user is not signal.default_int_handler:
@@ -288,7 +294,7 @@ class RunGuard:
         self.signals.restore()
         if self.lock is not None:
             self.lock.release()
-        if self.created:
+        if self.created and self.directory is not None:
             try:
                 self.directory.rmdir()  # only if empty: a call that failed before writing leaves nothing
             except OSError:
@@ -314,4 +320,6 @@ class RunGuard:
         if number == signal.SIGTERM:
             # Uncaught, RunInterrupted ends the process silently (status 143): say it in the log.
             print(message, file=sys.stderr, flush=True)
+        # signals are caught only around a run directory (see __enter__)
+        assert self.directory is not None
         self.signals.stop(message, self.directory, done)

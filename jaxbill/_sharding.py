@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
+from typing import TypeAlias
 
 import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jaxtyping import ArrayLike, Float
 
 from ._collision import Orbit, _check_eagerly, _orbit_batch
 from ._lanes import choose_driver
@@ -32,7 +34,12 @@ from ._validation import check_orbit_length
 ORBIT_AXIS = "orbits"
 
 
-def orbit_mesh(devices: Mesh | Sequence[jax.Device] | None = None) -> Mesh:
+# What ``devices`` arguments accept. jax exports ``Device`` as a plain assignment, which
+# pyright does not take as a type: this alias is the one place that says so.
+DeviceChoice: TypeAlias = Mesh | Sequence[jax.Device] | None  # pyright: ignore[reportInvalidTypeForm]
+
+
+def orbit_mesh(devices: DeviceChoice = None) -> Mesh:
     """The one-axis mesh (axis ``"orbits"``) a batch of orbits is split over.
 
     Args:
@@ -120,7 +127,12 @@ def _sharded_orbit_function(mesh: Mesh, n: int, driver: str):
 
 
 def orbit_sharded(
-    scene, states0, n: int, devices: Mesh | Sequence[jax.Device] | None = None, *, driver: str | None = None
+    scene,
+    states0: Float[ArrayLike, "B S"],
+    n: int,
+    devices: DeviceChoice = None,
+    *,
+    driver: str | None = None,
 ) -> Orbit:
     """``jb.orbit`` for a batch, split over several devices.
 

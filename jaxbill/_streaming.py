@@ -22,14 +22,15 @@ import functools
 import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh
+from jaxtyping import ArrayLike, Float, Int
 
 from . import _lanes as lanes
 from . import _run_guard
@@ -45,7 +46,7 @@ from ._run_files import (
     scene_parameters,
     scene_signature,
 )
-from ._sharding import host_rows, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
+from ._sharding import DeviceChoice, host_rows, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
 from ._validation import check_count
 
 # Contact codes counted one by one in the running statistics: every scene's codes
@@ -100,10 +101,10 @@ class SectionPoints:
             ``point[orbit == i]`` is orbit ``i``'s points in collision order.
     """
 
-    point: np.ndarray
-    t: np.ndarray
-    collision: np.ndarray
-    orbit: np.ndarray | None
+    point: Float[np.ndarray, "m P"]
+    t: Float[np.ndarray, " m"]
+    collision: Int[np.ndarray, " m"]
+    orbit: Int[np.ndarray, " m"] | None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,17 +137,17 @@ class Run:
         out: the run directory of this process, or ``None``.
     """
 
-    final_state: np.ndarray
-    time: np.ndarray
+    final_state: Float[np.ndarray, "*orbits S"]
+    time: Float[np.ndarray, "*orbits"]
     collisions: int
     contact_codes: tuple[int, ...]
-    contact_counts: np.ndarray
-    max_energy_error: np.ndarray
-    t: np.ndarray | None
-    contact: np.ndarray | None
-    state: np.ndarray | None
+    contact_counts: Int[np.ndarray, "*orbits codes"]
+    max_energy_error: Float[np.ndarray, "*orbits"]
+    t: Float[np.ndarray, "*orbits R"] | None
+    contact: Int[np.ndarray, "*orbits R"] | None
+    state: Float[np.ndarray, "*orbits R S"] | None
     section: SectionPoints | None
-    orbit_index: np.ndarray | None
+    orbit_index: Int[np.ndarray, " orbits"] | None
     checkpoint: Checkpoint
     section_reruns: int
     chunks: int
@@ -159,10 +160,11 @@ class Run:
 class _Carry(NamedTuple):
     """What one orbit carries from chunk to chunk (on the device)."""
 
-    state: jax.Array  # (S,)
-    time: jax.Array  # ()
-    max_energy_error: jax.Array  # ()
-    contact_counts: jax.Array  # (len(CONTACT_CODES) + 1,) int64
+    # on the device while the run goes, built and saved as numpy on the host
+    state: jax.Array | np.ndarray  # (S,)
+    time: jax.Array | np.ndarray  # ()
+    max_energy_error: jax.Array | np.ndarray  # ()
+    contact_counts: jax.Array | np.ndarray  # (len(CONTACT_CODES) + 1,) int64
 
 
 @dataclasses.dataclass(frozen=True)
@@ -236,6 +238,7 @@ def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
         return carry, _poison_if(invalid, *buffers)
 
     section, rows = plan.section, plan.rows
+    assert section is not None  # a "section" plan carries its Section
     project = section.project or (lambda scene, state: state)
     shape = jax.eval_shape(project, scene, state0)
     # One row past the end takes what does not fit; the count goes on, so the
@@ -271,7 +274,7 @@ def _lanes_chunk(plan: _Plan, width: int):
             return a.reshape(-1, width, *a.shape[1:])
 
         out = jax.lax.map(
-            lambda lane_args: lane(scene, *lane_args, start, steps),
+            lambda lane_args: lane(scene, lane_args[0], lane_args[1], start, steps),
             (as_lanes(states0), jax.tree.map(as_lanes, carry)),
         )
         return jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), out)
@@ -291,8 +294,9 @@ def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
     )
 
     def run_machine(scene, states0, carry, start, steps):
+        records: Any = ()
         if driver == "pallas":
-            new_carry, records = pallas_final(scene, states0, lanes.Carry(*carry), steps, interpret=interpret), ()
+            new_carry = pallas_final(scene, states0, lanes.Carry(*carry), steps, interpret=interpret)
         else:
             blocks = lanes.run_blocks(machine_plan, width if interpret else None)
             new_carry, records = blocks(scene, states0, lanes.Carry(*carry), start, steps)
@@ -318,9 +322,11 @@ def _poison_rows(invalid, array):
 def _compiled_chunk(plan: _Plan, width: int | None, mesh: Mesh | None, driver: str | None):
     if width is None:
         return jax.jit(functools.partial(_lane_chunk, plan))
+    assert mesh is not None  # a batch runs on a mesh
     if driver == "lockstep":
         batched = _lanes_chunk(plan, width)
     else:
+        assert driver is not None  # chosen by the engine for a batch
         batched = _state_machine_chunk(plan, width, driver, interpret=mesh.devices.flat[0].platform == "cpu")
     return shard_over_orbits(batched, mesh, (False, True, True, False, False))
 
@@ -340,15 +346,15 @@ class _Engine:
             self.lanes = 1
             return
         self.width = scene.batch_chunk
-        self.mesh = orbit_mesh(devices)
-        self.platform = self.mesh.devices.flat[0].platform
+        self.mesh = mesh = orbit_mesh(devices)
+        self.platform = mesh.devices.flat[0].platform
         lanes.choose_driver(self.platform, driver)  # an unknown driver fails before anything runs
         self.driver = driver
         self.batch = state0.shape[0]
         self.lanes = padded_batch_size(self.batch, self.width, self.mesh)
         self.padded_state0 = pad_batch(state0, self.lanes)
-        self.device_scene = jax.tree.map(lambda leaf: to_mesh(leaf, self.mesh, batched=False), scene)
-        self.device_state0 = to_mesh(self.padded_state0, self.mesh, batched=True)
+        self.device_scene = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
+        self.device_state0 = to_mesh(self.padded_state0, mesh, batched=True)
         _, index = host_rows(self.device_state0)
         self.local_rows = index < self.batch  # padding lanes are computed, never reported
         self.orbit_index = index[self.local_rows]
@@ -360,6 +366,8 @@ class _Engine:
             start = self.fresh_carry(self.state0) if checkpoint is None else _carry_of(checkpoint)
             return _Carry(*(jnp.asarray(a) for a in start))
         fresh = self.fresh_carry(self.padded_state0)
+        assert self.mesh is not None and self.orbit_index is not None  # set up for a batch
+        mesh = self.mesh
         if checkpoint is not None:
             # Every process builds the full padded batch but fills in only its
             # own orbits: to_mesh reads only the rows of this process's devices.
@@ -369,7 +377,7 @@ class _Engine:
                 field[self.orbit_index] = saved
                 fields.append(field)
             fresh = _Carry(*fields)
-        return _Carry(*(to_mesh(field, self.mesh, batched=True) for field in fresh))
+        return _Carry(*(to_mesh(field, mesh, batched=True) for field in fresh))
 
     @staticmethod
     def fresh_carry(state0: np.ndarray) -> _Carry:
@@ -388,11 +396,13 @@ class _Engine:
             return function(self.device_scene, self.device_state0, carry, start, steps)
         return function(self.scene, jnp.asarray(self.state0), carry, start, steps)
 
-    def to_host(self, array: jax.Array) -> np.ndarray:
+    def to_host(self, array: jax.Array | np.ndarray) -> np.ndarray:
         """This process's orbits of a per-orbit device array, padding lanes dropped."""
         if not self.batched:
             return np.asarray(array)
+        assert isinstance(array, jax.Array)  # a batch's results live on the mesh
         values = host_rows(array)[0]
+        assert self.orbit_index is not None  # set up for a batch
         # The padding lanes come last: a slice (a view, no copy) drops them.
         return values[: self.orbit_index.size] if self.padding_last else values[self.local_rows]
 
@@ -442,20 +452,21 @@ class _ProgressBar:
 
 def _parse_record(record, every) -> tuple[str, Section | None, int]:
     every = check_count("every", every, 1, "record the collisions numbered every, 2 every, ...")
-    if isinstance(record, Section):
+    section = record if isinstance(record, Section) else None
+    if section is not None:
         kind = "section"
     elif record in ("final", "states"):
-        kind = record
+        kind = str(record)
     else:
         raise ValueError(f"record must be 'final', 'states' or a jb.Section; got {record!r}")
     if every != 1 and kind != "states":
         raise ValueError(f"every applies to record='states' only; got every={every} with record={record!r}")
-    if kind == "section":
-        if not callable(record.where) or not (record.project is None or callable(record.project)):
+    if section is not None:
+        if not callable(section.where) or not (section.project is None or callable(section.project)):
             raise ValueError("Section: where and project must be functions (project may be None)")
-        if record.capacity is not None:
-            check_count("Section.capacity", record.capacity, 1, "section points per orbit per chunk")
-    return kind, (record if kind == "section" else None), every
+        if section.capacity is not None:
+            check_count("Section.capacity", section.capacity, 1, "section points per orbit per chunk")
+    return kind, section, every
 
 
 def _section_point_shape(scene, state0: np.ndarray, section: Section) -> jax.ShapeDtypeStruct:
@@ -521,8 +532,9 @@ def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, en
         raise ValueError(f"resume: {source} belongs to a run of another scene")
     if checkpoint.collisions > n:
         raise ValueError(f"resume: {source} is at collision {checkpoint.collisions}, beyond n = {n}")
-    same_orbits = (checkpoint.orbit_index is None) == (engine.orbit_index is None) and (
-        engine.orbit_index is None or np.array_equal(checkpoint.orbit_index, engine.orbit_index)
+    saved_orbits, engine_orbits = checkpoint.orbit_index, engine.orbit_index
+    same_orbits = (saved_orbits is None and engine_orbits is None) or (
+        saved_orbits is not None and engine_orbits is not None and np.array_equal(saved_orbits, engine_orbits)
     )
     if not same_orbits:
         raise ValueError(
@@ -555,8 +567,9 @@ class _Records:
         self.records_from = checkpoint.records_from if checkpoint else first
         self.section_rows = checkpoint.section_rows if checkpoint else 0  # section points in out_dir
         self.section_blocks: list[tuple[np.ndarray, ...]] = []
-        self.section_files = None
-        self.states = None
+        self.section_files: list[GrowingNpy] | None = None
+        # np.memmap in a run directory, np.ndarray in memory
+        self.states: list[np.ndarray] | None = None
         lead = (engine.orbit_index.size,) if engine.batched else ()
         if out_dir is not None:
             out_dir.mkdir(parents=True, exist_ok=True)
@@ -610,6 +623,7 @@ class _Records:
         if last == first:
             return
         rows = slice(first - self.base, last - self.base)
+        assert self.states is not None  # opened for record="states"
         for record, buffer in zip(self.states, buffers):
             values = self.engine.to_host(buffer)
             if self.engine.batched:
@@ -647,7 +661,8 @@ class _Records:
         if self.out_dir is not None and self.states is not None:
             for name, record in zip(STATE_RECORD_NAMES, self.states):
                 try:
-                    record.flush()
+                    if isinstance(record, np.memmap):  # always, in a run directory
+                        record.flush()
                 except OSError as error:  # e.g. EIO from the disk: say which file
                     raise OSError(error.errno, error.strerror, str(self.out_dir / f"{name}.npy")) from error
 
@@ -658,6 +673,7 @@ class _Records:
             return None, None, None, None
         if self.kind == "states":
             if self.out_dir is None:
+                assert self.states is not None  # made in memory for record="states"
                 return (*self.states, None)
             return (*(np.load(self.out_dir / f"{name}.npy", mmap_mode="r") for name in STATE_RECORD_NAMES), None)
         batched = self.engine.batched
@@ -674,7 +690,7 @@ class _Records:
 
 def run(
     scene,
-    state0,
+    state0: Float[ArrayLike, "*batch S"],
     n: int,
     *,
     record="final",
@@ -682,7 +698,7 @@ def run(
     chunk: int | None = None,
     out: str | os.PathLike | None = None,
     resume=None,
-    devices: Mesh | Sequence[jax.Device] | None = None,
+    devices: DeviceChoice = None,
     progress: bool | None = None,
     driver: str | None = None,
 ) -> Run:
@@ -773,7 +789,10 @@ def _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, 
     engine = _Engine(scene, state0, devices, driver)
 
     point = _section_point_shape(scene, state0, section) if section else None
-    record_signature = {"final": "final", "states": f"states/every={every}"}.get(kind) or f"section/{point.shape}"
+    if point is not None:
+        record_signature = f"section/{point.shape}"
+    else:
+        record_signature = "final" if kind == "final" else f"states/every={every}"
     checkpoint = _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, engine)
     first = checkpoint.collisions if checkpoint else 0
 
@@ -788,7 +807,7 @@ def _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, 
 
     carry = engine.initial_carry(checkpoint)
     own_checkpoint = checkpoint if (resume is True) else None
-    lead = engine.orbit_index.size if engine.batched else 1
+    lead = engine.orbit_index.size if engine.orbit_index is not None else 1  # set for a batch only
     # The old and the new checkpoint side by side while one replaces the other.
     checkpoint_bytes = 2 * (state0.nbytes + lead * (state0.shape[-1] + len(CONTACT_CODES) + 5) * 8) + (1 << 16)
     records = _Records(kind, every, n, first, engine, point, out_dir, own_checkpoint, checkpoint_bytes)
@@ -801,13 +820,13 @@ def _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, 
     last_saved = time.perf_counter()
 
     def checkpoint_now() -> Checkpoint:
-        host = _Carry(*(engine.to_host(a) for a in carry))
+        state, time_, max_energy_error, contact_counts = (engine.to_host(a) for a in carry)
         return Checkpoint(
             state0=state0,
-            state=host.state,
-            time=host.time,
-            max_energy_error=host.max_energy_error,
-            contact_counts=host.contact_counts,
+            state=state,
+            time=time_,
+            max_energy_error=max_energy_error,
+            contact_counts=contact_counts,
             contact_codes=np.asarray(CONTACT_CODES),
             collisions=done,
             orbit_index=engine.orbit_index,

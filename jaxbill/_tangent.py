@@ -52,12 +52,34 @@ restricting the tangent maps to them loses nothing.
 
 from __future__ import annotations
 
+from typing import Protocol, cast
+
 import jax
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from ._collision import _collide, step_function
 from ._scene import Scene
 from ._validation import check_state_static, check_unbatched_scene, require_x64
+
+
+class _Flows(Scene, Protocol):
+    """What the flow's tangent asks of a scene beyond ``Scene``: its free-flight vector field."""
+
+    def phase_velocity(self, state: jax.Array) -> jax.Array: ...
+
+
+class _MovingFrame(Scene, Protocol):
+    """A scene whose dynamical directions move with the state (``StickBetweenWalls3D``).
+
+    A scene whose directions are fixed state coordinates names them in
+    ``dynamical_indices`` instead.
+    """
+
+    @property
+    def dynamical_size(self) -> int: ...
+
+    def dynamical_frame(self, state: jax.Array) -> jax.Array: ...
 
 
 def dynamical_indices(scene: Scene) -> tuple[int, ...]:
@@ -86,10 +108,10 @@ def dynamical_indices(scene: Scene) -> tuple[int, ...]:
 def dynamical_size(scene: Scene) -> int:
     """Number ``k`` of tangent directions that carry the dynamics (the length of a flow spectrum)."""
     indices = getattr(scene, "dynamical_indices", None)
-    return len(indices) if indices is not None else int(scene.dynamical_size)
+    return len(indices) if indices is not None else int(cast(_MovingFrame, scene).dynamical_size)
 
 
-def dynamical_frame(scene: Scene, state: jax.Array) -> jax.Array:
+def dynamical_frame(scene: Scene, state: Float[ArrayLike, " S"]) -> Float[Array, "S k"]:
     """Orthonormal columns spanning the dynamical tangent directions at ``state``: ``(S, k)``.
 
     The coordinate axes of ``dynamical_indices`` for ``StickInCircle`` and
@@ -101,7 +123,7 @@ def dynamical_frame(scene: Scene, state: jax.Array) -> jax.Array:
     indices = getattr(scene, "dynamical_indices", None)
     if indices is not None:
         return jnp.eye(scene.state_size, dtype=state.dtype)[:, list(indices)]
-    return scene.dynamical_frame(state)
+    return cast(_MovingFrame, scene).dynamical_frame(state)
 
 
 def to_state_space(scene: Scene, state: jax.Array, coefficients: jax.Array) -> jax.Array:
@@ -110,7 +132,7 @@ def to_state_space(scene: Scene, state: jax.Array, coefficients: jax.Array) -> j
     if indices is not None:
         idx = jnp.asarray(indices)
         return jnp.zeros((scene.state_size, coefficients.shape[1]), coefficients.dtype).at[idx].set(coefficients)
-    return scene.dynamical_frame(state) @ coefficients
+    return cast(_MovingFrame, scene).dynamical_frame(state) @ coefficients
 
 
 def to_dynamical(scene: Scene, state: jax.Array, vectors: jax.Array) -> jax.Array:
@@ -122,10 +144,12 @@ def to_dynamical(scene: Scene, state: jax.Array, vectors: jax.Array) -> jax.Arra
     indices = getattr(scene, "dynamical_indices", None)
     if indices is not None:
         return vectors[jnp.asarray(indices)]
-    return scene.dynamical_frame(state).T @ vectors
+    return cast(_MovingFrame, scene).dynamical_frame(state).T @ vectors
 
 
-def phase_velocity(scene_or_state, state=None) -> jax.Array:
+def phase_velocity(
+    scene_or_state: Scene | Float[ArrayLike, "*batch 6"], state: Float[ArrayLike, "*batch S"] | None = None
+) -> Float[Array, "*batch S"]:
     """The flow's vector field ``f(s)`` during free flight: ``phase_velocity(scene, state)``.
 
     ``StickInCircle``: ``[vx, vy, omega, 0, 0, 0]``; ``StickBetweenWalls2D``:
@@ -145,7 +169,7 @@ def phase_velocity(scene_or_state, state=None) -> jax.Array:
             )
         zeros = jnp.zeros_like(state[..., 0:3])
         return jnp.concatenate([state[..., 3:6], zeros], axis=-1)
-    return scene_or_state.phase_velocity(jnp.asarray(state))
+    return cast(_Flows, scene_or_state).phase_velocity(jnp.asarray(state))
 
 
 def _map_with_time(scene: Scene, state: jax.Array):
@@ -185,14 +209,16 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
     def push(v):
         ds, dtime = linear(v)
         if flow:
-            ds = ds - scene.phase_velocity(new_state) * dtime
+            ds = ds - cast(_Flows, scene).phase_velocity(new_state) * dtime
         return ds
 
     new_vectors = jax.vmap(push, in_axes=1, out_axes=1)(vectors)
     return new_state, dt, contact, new_vectors
 
 
-def tangent_map(scene: Scene, state: jax.Array, *, flow: bool = False, mode: str = "forward"):
+def tangent_map(
+    scene: Scene, state: Float[ArrayLike, " S"], *, flow: bool = False, mode: str = "forward"
+) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""], Float[Array, "S S"]]:
     """The Jacobian of one collision: ``(new_state, dt, contact, jacobian)``.
 
     Args:
@@ -237,7 +263,7 @@ def tangent_map(scene: Scene, state: jax.Array, *, flow: bool = False, mode: str
     new_state, dt, contact = _collide(scene, state)
     d_state, d_time = jac(lambda s: _map_with_time(scene, s))(state)
     if flow:
-        d_state = d_state - jnp.outer(scene.phase_velocity(new_state), d_time)
+        d_state = d_state - jnp.outer(cast(_Flows, scene).phase_velocity(new_state), d_time)
     # The map is poisoned where the input is invalid (or its search failed);
     # its derivative through jnp.where would be a plausible matrix of zeros.
     d_state = jnp.where(jnp.isnan(dt), jnp.nan, d_state)

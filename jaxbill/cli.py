@@ -41,7 +41,8 @@ def _figures(args: argparse.Namespace) -> int:
     from ._figures import make_figures
 
     summary = make_figures(args.out, quick=args.quick, progress=not args.no_progress)
-    print(f"wrote {len(summary['figures']) + len(summary.get('walls', []))} figures, summary.json and summary.txt to {args.out} "
+    figures = len(summary["figures"]) + len(summary.get("walls", []))
+    print(f"wrote {figures} figures, summary.json and summary.txt to {args.out} "
           f"in {summary['total_seconds']:.1f} s ({summary['total_collisions']} collisions; worst relative "
           f"energy drift {summary['worst_energy_drift']:.1e})")
     return 0
