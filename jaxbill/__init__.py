@@ -59,7 +59,8 @@ from ._walls_sections import (  # noqa: E402
 from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from ._run_files import Checkpoint  # noqa: E402
 from ._run_guard import RunInterrupted  # noqa: E402
-from ._sharding import orbit_mesh, orbit_sharded  # noqa: E402
+from ._collision import orbit_sharded  # noqa: E402
+from ._sharding import orbit_mesh  # noqa: E402
 from ._streaming import Run, Section, SectionPoints, run  # noqa: E402
 from ._scene import angular_momentum, end_points, energy  # noqa: E402
 from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402

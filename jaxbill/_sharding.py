@@ -18,18 +18,13 @@ on the batch size or on the number of devices or processes.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from typing import TypeAlias
 
 import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
-from jaxtyping import ArrayLike, Float
 
-from ._collision import Orbit, _check_eagerly, _orbit_batch
-from ._lanes import choose_driver
-from ._validation import check_orbit_length
 
 ORBIT_AXIS = "orbits"
 
@@ -119,54 +114,3 @@ def shard_over_orbits(batched_function, mesh: Mesh, batched_args: tuple[bool, ..
     sharded = jax.shard_map(batched_function, mesh=mesh, in_specs=specs, out_specs=PartitionSpec(ORBIT_AXIS),
                             check_vma=False)
     return jax.jit(sharded)
-
-
-@functools.lru_cache(maxsize=32)
-def _sharded_orbit_function(mesh: Mesh, n: int, driver: str):
-    return shard_over_orbits(lambda scene, states0: _orbit_batch(scene, states0, n, driver), mesh, (False, True))
-
-
-def orbit_sharded(
-    scene,
-    states0: Float[ArrayLike, "B S"],
-    n: int,
-    devices: DeviceChoice = None,
-    *,
-    driver: str | None = None,
-) -> Orbit:
-    """``jb.orbit`` for a batch, split over several devices.
-
-    Args:
-        scene: a scene with scalar parameters (e.g. ``StickInCircle``).
-        states0: ``(B, S)`` initial states (``S = scene.state_size``); under
-            ``jax.distributed`` every process passes the same full batch.
-        n: collisions per orbit (a Python int, static).
-        devices: see ``orbit_mesh`` (default: every device of every process).
-        driver: ``"lockstep"``, ``"lanes"`` or ``None`` (the platform's
-            default): see ``jb.orbit``.
-
-    Returns:
-        ``Orbit`` with fields ``(B, n)``, ``(B, n)`` and ``(B, n, S)``, as global
-        arrays split over the devices along the orbit axis (in one process
-        ``np.asarray`` gathers them; under ``jax.distributed`` each process
-        reads the orbits it holds with ``host_rows``, or all of them with
-        ``jax.experimental.multihost_utils.process_allgather``).
-
-    The batch is padded to whole lanes of ``scene.batch_chunk`` orbits on every
-    device, so each orbit is bitwise the same for any number of devices and
-    any batch size, and the same as ``jb.orbit`` whenever
-    ``B >= scene.batch_chunk`` (``jb.orbit`` runs a smaller batch as one
-    narrower program, which on CPU can round differently in the last bit).
-    """
-    n = check_orbit_length(n)
-    states0 = np.asarray(states0, dtype=np.float64)
-    if states0.ndim != 2:
-        raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
-    _check_eagerly(scene, states0)
-    mesh = orbit_mesh(devices)
-    driver = choose_driver(mesh.devices.flat[0].platform, driver, record="states")
-    batch = states0.shape[0]
-    padded = pad_batch(states0, padded_batch_size(batch, scene.batch_chunk, mesh))
-    scene_on_mesh = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
-    result = _sharded_orbit_function(mesh, n, driver)(scene_on_mesh, to_mesh(padded, mesh, batched=True))
-    return jax.tree.map(lambda a: a[:batch], result) if padded.shape[0] != batch else result
