@@ -17,9 +17,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import types
 import typing
 
 import jaxtyping
+import numpy as np
 from beartype.door import is_bearable
 
 CHECKED = "__jaxbill_shapes_checked__"
@@ -42,6 +44,23 @@ def shape_hints(function) -> dict:
     return {name: hint for name, hint in hints.items() if _names_shapes(hint)}
 
 
+def _is_plain_protocol(hint) -> bool:
+    return (
+        isinstance(hint, type)
+        and getattr(hint, "_is_protocol", False)
+        and not getattr(hint, "_is_runtime_protocol", False)
+    )
+
+
+def _bearable(value, hint) -> bool:
+    """``is_bearable``, except that a protocol isinstance cannot test (``Scene``) stands for "not an array"."""
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        return any(_bearable(value, member) for member in typing.get_args(hint))
+    if _is_plain_protocol(hint):
+        return not hasattr(value, "shape")
+    return is_bearable(value, hint)
+
+
 def _fail(function, what: str, value, hint):
     shape = getattr(value, "shape", None)
     dtype = getattr(value, "dtype", None)
@@ -59,14 +78,18 @@ def check_shapes(function):
     @jaxtyping.jaxtyped(typechecker=None)
     def check(bound: inspect.BoundArguments, result):
         for name, value in bound.arguments.items():
-            if name in hints and not is_bearable(value, hints[name]):
+            if name not in hints:
+                continue
+            if isinstance(value, list | tuple):  # nested numbers: checked as the array jnp.asarray makes
+                value = np.asarray(value)
+            if not _bearable(value, hints[name]):
                 _fail(function, f"argument {name!r}", value, hints[name])
-        if "return" in hints and not is_bearable(result, hints["return"]):
+        if "return" in hints and not _bearable(result, hints["return"]):
             _fail(function, "the result", result, hints["return"])
         if result_hint is not None and isinstance(result_hint, type) and isinstance(result, result_hint):
             for name, hint in _field_hints(result).items():
                 field = getattr(result, name)
-                if not is_bearable(field, hint):
+                if not _bearable(field, hint):
                     _fail(function, f"the result's field {name!r}", field, hint)
 
     @functools.wraps(function)
