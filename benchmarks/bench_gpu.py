@@ -65,8 +65,10 @@ def main():
     parser.add_argument("--rounds", type=int, default=5)
     args = parser.parse_args()
     if not gpu_present():
-        print("bench_gpu: no GPU visible to JAX (jax.devices() = "
-              f"{[d.platform for d in jax.devices()]}); nothing to measure. Run it on a machine with a CUDA GPU.")
+        print(
+            "bench_gpu: no GPU visible to JAX (jax.devices() = "
+            f"{[d.platform for d in jax.devices()]}); nothing to measure. Run it on a machine with a CUDA GPU."
+        )
         return 0
 
     import jaxbill as jb
@@ -86,8 +88,10 @@ def main():
         "walls h=3 ell=1": baseline.walls_params(3.0, 1.0),
         "ellipse 2x1.4 ell=0.5": None,
     }
-    print("| scene | orbits | what | compile + first s | median s | collisions/s | ratio to numba CUDA "
-          "| root steps / collision |")
+    print(
+        "| scene | orbits | what | compile + first s | median s | collisions/s | ratio to numba CUDA "
+        "| root steps / collision |"
+    )
     print("|---|---:|---|---:|---:|---:|---:|---:|")
     for label, params in scenes.items():
         if params is None:
@@ -124,7 +128,7 @@ def main():
                     scene, states, n, driver="lockstep", progress=False
                 )
             if hasattr(scene, "dynamical_indices"):  # the kernel's tangent lives in state coordinates
-                from jaxbill import _pallas  # noqa: PLC0415
+                from jaxbill import _pallas
 
                 tangents = np.zeros_like(states)
                 dynamical = list(scene.dynamical_indices)
@@ -132,13 +136,16 @@ def main():
                 device_states, device_tangents = jax.numpy.asarray(states), jax.numpy.asarray(tangents)
                 fli = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, n)[0])
                 contenders["tangent collisions (pallas_fli)"] = lambda: jax.block_until_ready(
-                    fli(device_states, device_tangents))
+                    fli(device_states, device_tangents)
+                )
             for name, function in contenders.items():
                 rows.append((name, *timed(function, args.rounds)))
             for name, first, median in rows:
                 ratio = f"{collisions / median / peer:.2f}" if peer else "n/a"
-                print(f"| {label} | {orbits} | {name} | {first:.2f} | {median:.4f} | {collisions / median:.3g} "
-                      f"| {ratio} | {steps:.2f} |")
+                print(
+                    f"| {label} | {orbits} | {name} | {first:.2f} | {median:.4f} | {collisions / median:.3g} "
+                    f"| {ratio} | {steps:.2f} |"
+                )
     fli_map_timing(jb, args.rounds)
     return 0
 
@@ -151,8 +158,10 @@ def fli_map_timing(jb, rounds, side=1024, collisions=1000):
     grid = np.asarray(jb.section_state(scene, s, p, energy=0.5))
     first, median = timed(lambda: jb.fli_map(scene, grid, collisions, chunk=side * side), rounds)
     print()
-    print(f"FLI map {side} x {side}, {collisions} collisions, lens R=2 ell=1.5: first call {first:.2f} s, "
-          f"then median {median:.3f} s ({side * side * collisions / median:.3g} tangent collisions/s)")
+    print(
+        f"FLI map {side} x {side}, {collisions} collisions, lens R=2 ell=1.5: first call {first:.2f} s, "
+        f"then median {median:.3f} s ({side * side * collisions / median:.3g} tangent collisions/s)"
+    )
     return grid
 
 
@@ -162,8 +171,17 @@ def _ellipse_states(count, seed=5):
     rng = np.random.default_rng(seed)
     radius, angle = 0.3 * np.sqrt(rng.uniform(size=count)), rng.uniform(-np.pi, np.pi, count)
     v = rng.normal(size=(count, 2))
-    states = np.stack([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-np.pi, np.pi, count),
-                       v[:, 0], v[:, 1], rng.normal(size=count)], axis=1)
+    states = np.stack(
+        [
+            radius * np.cos(angle),
+            radius * np.sin(angle),
+            rng.uniform(-np.pi, np.pi, count),
+            v[:, 0],
+            v[:, 1],
+            rng.normal(size=count),
+        ],
+        axis=1,
+    )
     return np.asarray(jb.orbit(jb.StickInEllipse(2.0, 1.4, 0.5), states, 2).state[:, -1])
 
 

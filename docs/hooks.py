@@ -23,37 +23,90 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 
 # page: (title, what it holds, public names in the order shown)
 API_PAGES = {
-    "api/scenes.md": ("Scenes", "The scenes: their parameters, state layouts and contact codes.",
-                      ["StickInCircle", "StickInEllipse", "StickBetweenWalls2D", "StickBetweenWalls3D"]),
-    "api/orbits.md": ("Orbits and invariants", "The collision map, orbits and the quantities they conserve.",
-                      ["collide", "orbit", "Orbit", "energy", "angular_momentum", "end_points"]),
-    "api/runs.md": ("Long runs and devices", "Runs of any length, records on disk, resumes, every device.",
-                    ["run", "Run", "Section", "SectionPoints", "Checkpoint", "RunInterrupted", "orbit_sharded",
-                     "orbit_mesh"]),
-    "api/sections.md": ("Sections", "Section coordinates, their inverses and seeds, and measures on sections.",
-                        ["reduced_section", "section_state", "section_seeds", "reduced_section_bounds",
-                         "paper_section", "birkhoff_section", "incoming_states", "wall_length", "floor_section",
-                         "floor_state", "floor_seeds", "floor_section_bound", "reduced_wall_section",
-                         "theta_z_path", "wall_twin_divergence", "curve_thickness", "covered_fraction",
-                         "count_islands", "twin_divergence", "is_chaotic"]),
-    "api/derivatives.md": ("Derivatives, Lyapunov spectra, chaos",
-                           "Tangent maps by autodiff and what is built on them.",
-                           ["tangent_map", "dynamical_indices", "dynamical_frame", "phase_velocity",
-                            "lyapunov_spectrum", "LyapunovSpectrum", "sample_energy_shell", "finite_time_lyapunov",
-                            "FiniteTimeLyapunov", "chaotic_fraction", "chaos_threshold", "fli", "megno",
-                            "fli_map", "FastLyapunovIndicator", "Megno"]),
-    "api/periodic.md": ("Periodic orbits", "Periodic and relative periodic orbits, their stability and families.",
-                        ["find_periodic_orbit", "find_periodic_orbits", "continue_periodic_orbit", "PeriodicOrbit",
-                         "STABILITY_LABELS"]),
-    "api/checker.md": ("Independent check", "The diffrax checker.",
-                       ["check", "CheckResult", "CheckReport", "CheckFlag"]),
+    "api/scenes.md": (
+        "Scenes",
+        "The scenes: their parameters, state layouts and contact codes.",
+        ["StickInCircle", "StickInEllipse", "StickBetweenWalls2D", "StickBetweenWalls3D"],
+    ),
+    "api/orbits.md": (
+        "Orbits and invariants",
+        "The collision map, orbits and the quantities they conserve.",
+        ["collide", "orbit", "Orbit", "energy", "angular_momentum", "end_points"],
+    ),
+    "api/runs.md": (
+        "Long runs and devices",
+        "Runs of any length, records on disk, resumes, every device.",
+        ["run", "Run", "Section", "SectionPoints", "Checkpoint", "RunInterrupted", "orbit_sharded", "orbit_mesh"],
+    ),
+    "api/sections.md": (
+        "Sections",
+        "Section coordinates, their inverses and seeds, and measures on sections.",
+        [
+            "reduced_section",
+            "section_state",
+            "section_seeds",
+            "reduced_section_bounds",
+            "paper_section",
+            "birkhoff_section",
+            "incoming_states",
+            "wall_length",
+            "floor_section",
+            "floor_state",
+            "floor_seeds",
+            "floor_section_bound",
+            "reduced_wall_section",
+            "theta_z_path",
+            "wall_twin_divergence",
+            "curve_thickness",
+            "covered_fraction",
+            "count_islands",
+            "twin_divergence",
+            "is_chaotic",
+        ],
+    ),
+    "api/derivatives.md": (
+        "Derivatives, Lyapunov spectra, chaos",
+        "Tangent maps by autodiff and what is built on them.",
+        [
+            "tangent_map",
+            "dynamical_indices",
+            "dynamical_frame",
+            "phase_velocity",
+            "lyapunov_spectrum",
+            "LyapunovSpectrum",
+            "sample_energy_shell",
+            "finite_time_lyapunov",
+            "FiniteTimeLyapunov",
+            "chaotic_fraction",
+            "chaos_threshold",
+            "fli",
+            "megno",
+            "fli_map",
+            "FastLyapunovIndicator",
+            "Megno",
+        ],
+    ),
+    "api/periodic.md": (
+        "Periodic orbits",
+        "Periodic and relative periodic orbits, their stability and families.",
+        ["find_periodic_orbit", "find_periodic_orbits", "continue_periodic_orbit", "PeriodicOrbit", "STABILITY_LABELS"],
+    ),
+    "api/checker.md": (
+        "Independent check",
+        "The diffrax checker.",
+        ["check", "CheckResult", "CheckReport", "CheckFlag"],
+    ),
     "api/explorer.md": ("Explorer", "The interactive section explorer.", ["explore"]),
 }
 # Objects a page shows after its public names: what those names return or take, documented
 # where they live (imported from there by a user who needs them).
 EXTRA_BLOCKS = {
-    "api/explorer.md": ["jaxbill._explorer.Explorer", "jaxbill._explorer.ClickedOrbit",
-                        "jaxbill._explorer.SectionChart", "jaxbill._explorer.register_section_chart"],
+    "api/explorer.md": [
+        "jaxbill._explorer.Explorer",
+        "jaxbill._explorer.ClickedOrbit",
+        "jaxbill._explorer.SectionChart",
+        "jaxbill._explorer.register_section_chart",
+    ],
 }
 MORE_PAGE = "api/more.md"
 MODULE_PAGES = {"api/plotting.md": ("Plotting", "jaxbill.plotting")}
@@ -61,7 +114,7 @@ MODULE_PAGES = {"api/plotting.md": ("Plotting", "jaxbill.plotting")}
 # Constants cannot carry docstrings: what each public one holds.
 CONSTANTS = {
     "STABILITY_LABELS": "The labels `PeriodicOrbit.stability` takes, from the monodromy multipliers: "
-                        "`'elliptic'`, `'parabolic'`, `'hyperbolic'`, `'inverse hyperbolic'`.",
+    "`'elliptic'`, `'parabolic'`, `'hyperbolic'`, `'inverse hyperbolic'`.",
 }
 
 
@@ -95,7 +148,8 @@ def api_pages() -> dict[str, str]:
         pages[path] = f"# {title}\n\n{intro}\n\n" + "\n".join(blocks)
     rest = [n for n in public if n not in listed]
     pages[MORE_PAGE] = "# More\n\nPublic names not yet given a page of their own.\n\n" + (
-        "\n".join(_block(n, getattr(jaxbill, n)) for n in rest) if rest else "None at the moment.\n")
+        "\n".join(_block(n, getattr(jaxbill, n)) for n in rest) if rest else "None at the moment.\n"
+    )
     for path, (title, module) in MODULE_PAGES.items():
         pages[path] = f"# {title}\n\n::: {module}\n"
     for name in public:

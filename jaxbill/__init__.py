@@ -24,11 +24,16 @@ from ._chaos import (  # noqa: E402
     finite_time_lyapunov,
     sample_energy_shell,
 )
-from ._checker import check, CheckFlag, CheckReport, CheckResult  # noqa: E402
-from ._collision import collide, orbit, Orbit  # noqa: E402
+from ._checker import CheckFlag, CheckReport, CheckResult, check  # noqa: E402
+from ._collision import (  # noqa: E402
+    Orbit,
+    collide,
+    orbit,
+    orbit_sharded,
+)
 from ._explorer import explore  # noqa: E402
-from ._lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
 from ._indicators import FastLyapunovIndicator, Megno, fli, fli_map, megno  # noqa: E402
+from ._lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
 from ._periodic import (  # noqa: E402
     STABILITY_LABELS,
     PeriodicOrbit,
@@ -36,6 +41,9 @@ from ._periodic import (  # noqa: E402
     find_periodic_orbit,
     find_periodic_orbits,
 )
+from ._run_files import Checkpoint  # noqa: E402
+from ._run_guard import RunInterrupted  # noqa: E402
+from ._scene import angular_momentum, end_points, energy  # noqa: E402
 from ._section_measures import count_islands, covered_fraction, curve_thickness, is_chaotic, twin_divergence  # noqa: E402
 from ._sections import (  # noqa: E402
     birkhoff_section,
@@ -47,6 +55,13 @@ from ._sections import (  # noqa: E402
     section_state,
     wall_length,
 )
+from ._sharding import orbit_mesh  # noqa: E402
+from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
+from ._stick_between_walls_3d import StickBetweenWalls3D  # noqa: E402
+from ._stick_in_circle import StickInCircle  # noqa: E402
+from ._stick_in_ellipse import StickInEllipse  # noqa: E402
+from ._streaming import Run, Section, SectionPoints, run  # noqa: E402
+from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from ._walls_sections import (  # noqa: E402
     floor_section,
     floor_section_bound,
@@ -56,17 +71,6 @@ from ._walls_sections import (  # noqa: E402
     theta_z_path,
     wall_twin_divergence,
 )
-from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
-from ._run_files import Checkpoint  # noqa: E402
-from ._run_guard import RunInterrupted  # noqa: E402
-from ._collision import orbit_sharded  # noqa: E402
-from ._sharding import orbit_mesh  # noqa: E402
-from ._streaming import Run, Section, SectionPoints, run  # noqa: E402
-from ._scene import angular_momentum, end_points, energy  # noqa: E402
-from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
-from ._stick_between_walls_3d import StickBetweenWalls3D  # noqa: E402
-from ._stick_in_circle import StickInCircle  # noqa: E402
-from ._stick_in_ellipse import StickInEllipse  # noqa: E402
 
 __all__ = [
     "StickInCircle",

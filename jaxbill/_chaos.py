@@ -181,9 +181,7 @@ def circle_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=
     c = rng.uniform(-R, R, (m, 2))
     alpha = rng.uniform(-np.pi, np.pi, m)
     u = np.stack([np.cos(alpha), np.sin(alpha)], axis=1)
-    inside = np.maximum(np.linalg.norm(c + ell * u, axis=1), np.linalg.norm(c - ell * u, axis=1)) < R * (
-        1 - margin
-    )
+    inside = np.maximum(np.linalg.norm(c + ell * u, axis=1), np.linalg.norm(c - ell * u, axis=1)) < R * (1 - margin)
     c, alpha = c[inside], alpha[inside]
     k = len(alpha)
     if scene.kind == "rotor":
@@ -218,8 +216,9 @@ def circle_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=
     return np.column_stack([c, alpha, v, omega]), w
 
 
-def table_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=None, margin: float = 1e-9,
-                           *, box: tuple[float, float]):
+def table_shell_candidates(
+    scene, rng, m: int, energy: float, angular_momentum=None, margin: float = 1e-9, *, box: tuple[float, float]
+):
     """Energy-shell tries for a planar stick ``[x, y, alpha, vx, vy, omega]`` in a fixed table (``StickInEllipse``).
 
     Configurations uniform in ``[-box[0], box[0]] x [-box[1], box[1]] x [-pi, pi)``, kept where both gaps

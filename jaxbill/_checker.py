@@ -135,9 +135,7 @@ class ColumnFlight(eqx.Module):
         speed = jnp.linalg.norm(y0[3:5])
         spin = jnp.abs(y0[5] / self.scale)
         centre = jnp.maximum(jnp.linalg.norm(y0[0:2]), jnp.linalg.norm(y1[0:2]))
-        return 2.0 * self.hessian_bound * (
-            (speed + self.ell * spin) ** 2 + (centre + self.ell) * self.ell * spin**2
-        )
+        return 2.0 * self.hessian_bound * ((speed + self.ell * spin) ** 2 + (centre + self.ell) * self.ell * spin**2)
 
     def reflect(self, k_index: jax.Array, y: jax.Array) -> jax.Array:
         """Specular reflection of the velocity about ``grad W_k`` (Euclidean metric)."""
@@ -304,9 +302,7 @@ class CheckReport:
     def agree(self) -> bool:
         """Contacts equal and every scaled deviation within ``tol`` up to ``n_compared``."""
         return (
-            self.first_contact_mismatch is None
-            and self.first_deviation is None
-            and self.local_first_mismatch is None
+            self.first_contact_mismatch is None and self.first_deviation is None and self.local_first_mismatch is None
         )
 
     @property
@@ -330,7 +326,9 @@ class CheckReport:
                 if self.first_contact_mismatch is None
                 else f"first mismatch at {self.first_contact_mismatch}"
             ),
-            "  verdict: " + ("AGREE" if self.agree else "DISAGREE") + f" within tol {self.tol:.1e}"
+            "  verdict: "
+            + ("AGREE" if self.agree else "DISAGREE")
+            + f" within tol {self.tol:.1e}"
             + ("" if self.first_deviation is None else f" (first deviation > tol at {self.first_deviation})"),
         ]
         for f in self.flags:
@@ -490,9 +488,19 @@ def check(
             f"scene: {type(scene).__name__} gives no checker_flight (the HasCheckerFlight protocol of "
             "jaxbill._scene): jb.check cannot integrate it"
         )
-    options = dict(tol=tol, graze_tol=graze_tol, dtmax=dtmax, solver=solver, rtol=rtol, atol=atol,
-                   root_tol=root_tol, chunk_steps=chunk_steps, max_steps=max_steps, corner_tol=corner_tol,
-                   horizon_eps=horizon_eps)
+    options = dict(
+        tol=tol,
+        graze_tol=graze_tol,
+        dtmax=dtmax,
+        solver=solver,
+        rtol=rtol,
+        atol=atol,
+        root_tol=root_tol,
+        chunk_steps=chunk_steps,
+        max_steps=max_steps,
+        corner_tol=corner_tol,
+        horizon_eps=horizon_eps,
+    )
     state0 = np.asarray(state0, dtype=np.float64)
     if any(np.ndim(leaf) for leaf in jax.tree_util.tree_leaves(scene)):
         raise NotImplementedError("jaxbill.check takes one scene, not a batch; loop over a batch")
@@ -501,15 +509,27 @@ def check(
 
 
 def _check_column(
-    column: ColumnFlight, scene, state0: np.ndarray, n: int, *, tol, graze_tol, dtmax, solver, rtol, atol,
-    root_tol, chunk_steps, max_steps, corner_tol, horizon_eps,
+    column: ColumnFlight,
+    scene,
+    state0: np.ndarray,
+    n: int,
+    *,
+    tol,
+    graze_tol,
+    dtmax,
+    solver,
+    rtol,
+    atol,
+    root_tol,
+    chunk_steps,
+    max_steps,
+    corner_tol,
+    horizon_eps,
 ) -> CheckResult:
     """``check`` for a ``ColumnFlight``: integrate flight by flight, certify each step, compare with ``jb.orbit``."""
     start = time.perf_counter()
     if state0.shape != (6,):
-        raise NotImplementedError(
-            "jaxbill.check takes one scene and one state0 of shape (6,); loop over a batch"
-        )
+        raise NotImplementedError("jaxbill.check takes one scene and one state0 of shape (6,); loop over a batch")
     reference = _orbit(scene, state0, n)  # also validates state0 eagerly
     length, ell, mass = float(column.length), float(column.ell), float(scene.mass)
     gap_unit, scale = float(column.gap_unit), float(column.scale)
@@ -556,11 +576,9 @@ def _check_column(
             message = {
                 "graze": f"a wall excursion could hide in the solver step from t = {t_abs + flag_time:.6g} "
                 f"(dtmax {step:.3g}); collision {i} and later not certified",
-                "max_steps": f"no wall event within max_steps = {max_steps} steps of {step:.3g} "
-                f"after t = {t_abs:.6g}",
+                "max_steps": f"no wall event within max_steps = {max_steps} steps of {step:.3g} after t = {t_abs:.6g}",
                 "root_find": f"event root finder failed near t = {t_abs + t_ev:.6g}",
-                "not_approaching": f"the end at the event at t = {t_abs + t_ev:.6g} "
-                "is not moving into the wall",
+                "not_approaching": f"the end at the event at t = {t_abs + t_ev:.6g} is not moving into the wall",
                 "corner": f"both ends at the wall at t = {t_abs + t_ev:.6g} (a crease of the column)",
             }[kind]
             flags.append(CheckFlag(index=i, kind=kind, message=message))

@@ -57,8 +57,9 @@ def step_function(scene: Scene, state0: jax.Array):
 
 
 def _poison_if(bad, *arrays):
-    return tuple(jnp.where(bad, jnp.nan, a) if jnp.issubdtype(a.dtype, jnp.floating) else jnp.where(bad, 0, a)
-                 for a in arrays)
+    return tuple(
+        jnp.where(bad, jnp.nan, a) if jnp.issubdtype(a.dtype, jnp.floating) else jnp.where(bad, 0, a) for a in arrays
+    )
 
 
 def _collide(scene: Scene, state: jax.Array):

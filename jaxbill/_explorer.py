@@ -72,8 +72,10 @@ def section_chart(scene) -> SectionChart:
         if scene_class in SECTION_CHARTS:
             return SECTION_CHARTS[scene_class]
     known = ", ".join(sorted(c.__name__ for c in SECTION_CHARTS)) or "none registered"
-    raise TypeError(f"scene: {type(scene).__name__} has no area-preserving section to explore "
-                    f"(known: {known}; give the scene a section_chart or call register_section_chart)")
+    raise TypeError(
+        f"scene: {type(scene).__name__} has no area-preserving section to explore "
+        f"(known: {known}; give the scene a section_chart or call register_section_chart)"
+    )
 
 
 # -- the scene's parameters as sliders ---------------------------------------------
@@ -108,8 +110,9 @@ def rebuild(scene, **changes):
     parameters = scene_parameters(scene)
     unknown = set(changes) - set(parameters)
     if unknown:
-        raise ValueError(f"{sorted(unknown)[0]}: not a parameter of {type(scene).__name__} "
-                         f"(its parameters: {', '.join(parameters)})")
+        raise ValueError(
+            f"{sorted(unknown)[0]}: not a parameter of {type(scene).__name__} (its parameters: {', '.join(parameters)})"
+        )
     parameters.update({name: float(value) for name, value in changes.items()})
     new = type(scene)(**parameters)
     if getattr(new, "kind", None) != getattr(scene, "kind", None):
@@ -148,8 +151,9 @@ def slider_ranges(scene) -> list[SliderRange]:
             first -= 1
         while last < len(grid) - 1 and accepted[last + 1]:
             last += 1
-        ranges.append(SliderRange(name, float(min(grid[first], math.log10(value))),
-                                  float(max(grid[last], math.log10(value)))))
+        ranges.append(
+            SliderRange(name, float(min(grid[first], math.log10(value))), float(max(grid[last], math.log10(value))))
+        )
     return ranges
 
 
@@ -209,9 +213,18 @@ class Explorer:
         status: the last message in the status line.
     """
 
-    def __init__(self, scene, invariants: dict[str, float] | None = None, *, survey_orbits: int = 24,
-                 survey_collisions: int = 1000, click_collisions: int = 4000, chunk: int = 500,
-                 configuration_collisions: int = 24, save_path="jaxbill_explorer.png"):
+    def __init__(
+        self,
+        scene,
+        invariants: dict[str, float] | None = None,
+        *,
+        survey_orbits: int = 24,
+        survey_collisions: int = 1000,
+        click_collisions: int = 4000,
+        chunk: int = 500,
+        configuration_collisions: int = 24,
+        save_path="jaxbill_explorer.png",
+    ):
         import matplotlib.pyplot as plt
         from matplotlib.widgets import Button, Slider
 
@@ -219,11 +232,17 @@ class Explorer:
         given = dict(invariants or {})
         unknown = set(given) - set(self.chart.invariant_symbols)
         if unknown:
-            raise ValueError(f"{sorted(unknown)[0]}: not an invariant of the {self.chart.title} "
-                             f"(it takes {', '.join(self.chart.invariant_symbols)})")
-        for name, value in [("survey_orbits", survey_orbits), ("survey_collisions", survey_collisions),
-                            ("click_collisions", click_collisions), ("chunk", chunk),
-                            ("configuration_collisions", configuration_collisions)]:
+            raise ValueError(
+                f"{sorted(unknown)[0]}: not an invariant of the {self.chart.title} "
+                f"(it takes {', '.join(self.chart.invariant_symbols)})"
+            )
+        for name, value in [
+            ("survey_orbits", survey_orbits),
+            ("survey_collisions", survey_collisions),
+            ("click_collisions", click_collisions),
+            ("chunk", chunk),
+            ("configuration_collisions", configuration_collisions),
+        ]:
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1; got {value!r}")
         scene_parameters(scene)  # a batch of scenes is refused here, naming the parameter
@@ -268,12 +287,12 @@ class Explorer:
         # The survey compiled the one batch program that clicks use too; compile the rest of a click now
         # (its start, its first section point, the configuration panel), showing the first survey orbit.
         first = self.survey_points[0, 0]
-        states, contacts = self.chart.start(self.scene, jnp.float64(first[0]), jnp.float64(first[1]),
-                                            self.invariants)
+        states, contacts = self.chart.start(self.scene, jnp.float64(first[0]), jnp.float64(first[1]), self.invariants)
         self._section_points(self.scene, np.asarray(states)[None], np.asarray(contacts)[None])
         self._show_survey_orbit()
-        self._say(f"click in the section to start an orbit there ({self.click_collisions} collisions); "
-                  f"{self.survey_message}")
+        self._say(
+            f"click in the section to start an orbit there ({self.click_collisions} collisions); {self.survey_message}"
+        )
 
     # -- what the callbacks do (callable directly too) --
 
@@ -292,16 +311,23 @@ class Explorer:
             return None
         color = CLICK_COLORS[len(self.orbits) % len(CLICK_COLORS)]
         first = np.asarray(self._section_points(self.scene, state0[None], contact0[None]))
-        (line,) = self.section_axes.plot(first[:, 0], first[:, 1], linestyle="none", marker=".", markersize=1.8,
-                                         markeredgewidth=0, color=color, zorder=3)
+        (line,) = self.section_axes.plot(
+            first[:, 0],
+            first[:, 1],
+            linestyle="none",
+            marker=".",
+            markersize=1.8,
+            markeredgewidth=0,
+            color=color,
+            zorder=3,
+        )
         (marker,) = self.section_axes.plot([x], [y], marker="+", markersize=9, mew=1.6, color=color, zorder=4)
         pieces, done, drawn = [first], 0, started
         for orb, points in self._orbit_chunks(state0[None], self.click_collisions):
             pieces.append(points[0])
             line.set_data(*np.concatenate(pieces).T)
             if done == 0:
-                self._draw_configuration(state0, Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]),
-                                         color)
+                self._draw_configuration(state0, Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]), color)
             done += len(points[0])
             if time.perf_counter() - drawn > REDRAW_SECONDS:
                 self._say(f"orbit {len(self.orbits) + 1} from ({x:.4g}, {y:.4g}): {done} collisions so far")
@@ -310,8 +336,10 @@ class Explorer:
         clicked = ClickedOrbit(np.array([x, y], dtype=np.float64), state0, np.concatenate(pieces), done)
         self.orbits.append(clicked)
         self._orbit_lines.append((line, marker))
-        self._say(f"orbit {len(self.orbits)} from ({x:.4g}, {y:.4g}): {done} collisions in "
-                  f"{time.perf_counter() - started:.2f} s")
+        self._say(
+            f"orbit {len(self.orbits)} from ({x:.4g}, {y:.4g}): {done} collisions in "
+            f"{time.perf_counter() - started:.2f} s"
+        )
         self._redraw()
         return clicked
 
@@ -386,17 +414,27 @@ class Explorer:
         points = np.concatenate([starts, *(p for _, p in self._orbit_chunks(states, self.survey_collisions))], 1)
         self.survey_points = points
         seconds = time.perf_counter() - started
-        self.survey_message = (f"survey of {self.survey_orbits} orbits x {self.survey_collisions} collisions "
-                                f"in {seconds:.2f} s")
+        self.survey_message = (
+            f"survey of {self.survey_orbits} orbits x {self.survey_collisions} collisions in {seconds:.2f} s"
+        )
         import matplotlib
 
         colormap = matplotlib.colormaps["viridis"]
         self._survey_lines = []
         for i, orbit_points in enumerate(points):
             ok = np.all(np.isfinite(orbit_points), axis=-1)
-            (line,) = ax.plot(orbit_points[ok, 0], orbit_points[ok, 1], linestyle="none", marker=".",
-                              markersize=1.3, markeredgewidth=0, alpha=0.55, rasterized=True,
-                              color=colormap(0.1 + 0.8 * i / max(1, len(points) - 1)), zorder=2)
+            (line,) = ax.plot(
+                orbit_points[ok, 0],
+                orbit_points[ok, 1],
+                linestyle="none",
+                marker=".",
+                markersize=1.3,
+                markeredgewidth=0,
+                alpha=0.55,
+                rasterized=True,
+                color=colormap(0.1 + 0.8 * i / max(1, len(points) - 1)),
+                zorder=2,
+            )
             self._survey_lines.append(line)
         low, high = self.chart.x_range(self.scene)
         across = np.linspace(low, high, 600)
@@ -409,8 +447,9 @@ class Explorer:
         ax.set_xlabel(self.chart.axis_labels[0])
         ax.set_ylabel(self.chart.axis_labels[1])
         parameters = ", ".join(f"{k} = {v:.4g}" for k, v in scene_parameters(self.scene).items())
-        ax.set_title(f"{type(self.scene).__name__}({parameters}): {self.chart.title} at {self._invariants_text()}",
-                     fontsize=10)
+        ax.set_title(
+            f"{type(self.scene).__name__}({parameters}): {self.chart.title} at {self._invariants_text()}", fontsize=10
+        )
 
     def _rerun_clicked_orbits(self) -> None:
         """Rerun every clicked orbit from its section point in the new scene, all in one batch."""
@@ -427,13 +466,15 @@ class Explorer:
             if not len(group):
                 continue
             firsts = np.asarray(self._section_points(self.scene, states[group], contacts[group]))[:, None, :]
-            points = np.concatenate([firsts, *(p for _, p in self._orbit_chunks(states[group],
-                                                                                self.click_collisions))], 1)
+            points = np.concatenate(
+                [firsts, *(p for _, p in self._orbit_chunks(states[group], self.click_collisions))], 1
+            )
             for index, orbit_points in zip(group, points):
                 line, marker = self._orbit_lines[index]
                 line.set_data(*orbit_points.T)
-                kept_orbits.append(ClickedOrbit(self.orbits[index].start, states[index], orbit_points,
-                                                len(orbit_points) - 1))
+                kept_orbits.append(
+                    ClickedOrbit(self.orbits[index].start, states[index], orbit_points, len(orbit_points) - 1)
+                )
                 kept_lines.append((line, marker))
         for index in np.flatnonzero(~reachable):
             line, marker = self._orbit_lines[index]
@@ -451,10 +492,10 @@ class Explorer:
         """The configuration panel before any click: the first survey orbit."""
         states, _ = self.chart.seeds(self.scene, 1, self.invariants)
         orb, _ = next(self._orbit_chunks(states, self.chunk))
-        self._draw_configuration(states[0], Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]),
-                                 "0.45")
-        self.configuration_axes.set_title(f"a survey orbit: its first {self.configuration_collisions} collisions",
-                                          fontsize=10)
+        self._draw_configuration(states[0], Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]), "0.45")
+        self.configuration_axes.set_title(
+            f"a survey orbit: its first {self.configuration_collisions} collisions", fontsize=10
+        )
 
     def _orbit_chunks(self, states, collisions: int):
         """Run the orbits from ``states`` (``(k, S)``, ``k <= survey_orbits``) for ``collisions`` collisions.
@@ -473,8 +514,14 @@ class Explorer:
             orb = self._run_chunk(self.scene, batch)
             points = np.asarray(self._section_points(self.scene, orb.state, orb.contact))
             keep = min(self.chunk, collisions - done)
-            yield (Orbit(t=np.asarray(orb.t[:count]), contact=np.asarray(orb.contact[:count]),
-                         state=np.asarray(orb.state[:count])), points[:count, :keep])
+            yield (
+                Orbit(
+                    t=np.asarray(orb.t[:count]),
+                    contact=np.asarray(orb.contact[:count]),
+                    state=np.asarray(orb.state[:count]),
+                ),
+                points[:count, :keep],
+            )
             done += keep
             batch = np.asarray(orb.state[:, -1])
             if not np.all(np.isfinite(batch)):
@@ -526,8 +573,16 @@ def sample_clicks(explorer: Explorer, count: int = 4) -> list[tuple[float, float
     return clicks
 
 
-def explore(scene, *, survey_orbits: int = 24, survey_collisions: int = 1000, click_collisions: int = 4000,
-            chunk: int = 500, save_path="jaxbill_explorer.png", **invariants) -> Explorer:
+def explore(
+    scene,
+    *,
+    survey_orbits: int = 24,
+    survey_collisions: int = 1000,
+    click_collisions: int = 4000,
+    chunk: int = 500,
+    save_path="jaxbill_explorer.png",
+    **invariants,
+) -> Explorer:
     """Open an interactive explorer of ``scene``'s area-preserving Poincaré section.
 
     Click in the section panel to start an orbit there; move a slider to
@@ -562,5 +617,12 @@ def explore(scene, *, survey_orbits: int = 24, survey_collisions: int = 1000, cl
         ValueError: for a batch of scenes, an unknown invariant, or a count
             that is not an integer >= 1.
     """
-    return Explorer(scene, invariants, survey_orbits=survey_orbits, survey_collisions=survey_collisions,
-                    click_collisions=click_collisions, chunk=chunk, save_path=save_path)
+    return Explorer(
+        scene,
+        invariants,
+        survey_orbits=survey_orbits,
+        survey_collisions=survey_collisions,
+        click_collisions=click_collisions,
+        chunk=chunk,
+        save_path=save_path,
+    )

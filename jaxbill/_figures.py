@@ -147,9 +147,19 @@ class Settings:
 
     @classmethod
     def quick_settings(cls) -> Settings:
-        return cls(fig2_collisions=600, section_orbits=6, section_collisions=300, lens_orbits=6,
-                   lens_collisions=300, walls_orbits=6, walls_collisions=300, ellipse_orbits=6,
-                   ellipse_collisions=300, dpi=60, quick=True)
+        return cls(
+            fig2_collisions=600,
+            section_orbits=6,
+            section_collisions=300,
+            lens_orbits=6,
+            lens_collisions=300,
+            walls_orbits=6,
+            walls_collisions=300,
+            ellipse_orbits=6,
+            ellipse_collisions=300,
+            dpi=60,
+            quick=True,
+        )
 
 
 # Fig. 2's two orbits, as section points (s, p) at ell = 1.9, E = 1/2, L = 0:
@@ -303,8 +313,9 @@ def _scan_figure(panels, title: str) -> Figure:
     axes = fig.subplots(2, len(panels), squeeze=False)
     for j, (scene, record, reduced, projected, chaotic, heading) in enumerate(panels):
         _draw_regular_over_chaotic(axes[0, j], projected, chaotic, "paper", heading)
-        _draw_regular_over_chaotic(axes[1, j], reduced, chaotic, "reduced",
-                                   f"reduced: {100 * record['chaotic_fraction']:.0f}% chaotic (grey)")
+        _draw_regular_over_chaotic(
+            axes[1, j], reduced, chaotic, "reduced", f"reduced: {100 * record['chaotic_fraction']:.0f}% chaotic (grey)"
+        )
         plotting.draw_reduced_bounds(axes[1, j], scene, ENERGY, ANGULAR_MOMENTUM)
         if j:
             axes[0, j].set_ylabel("")
@@ -317,8 +328,14 @@ def _scan_figure(panels, title: str) -> Figure:
 
 
 def _walls_scene_record(scene) -> dict:
-    return {"h": float(scene.h), "ell": float(scene.ell), "mass": float(scene.mass),
-            "inertia": float(scene.inertia), "kind": scene.kind, "dimension": 3 if scene.state_size == 12 else 2}
+    return {
+        "h": float(scene.h),
+        "ell": float(scene.ell),
+        "mass": float(scene.mass),
+        "inertia": float(scene.inertia),
+        "kind": scene.kind,
+        "dimension": 3 if scene.state_size == 12 else 2,
+    }
 
 
 def _walls_invariants(scene, states):
@@ -347,7 +364,7 @@ def _walls_panel(label, scene, states0, orb, points, distances, **extra):
     three = scene.state_size == 12
     unit = np.sqrt(2.0 * (float(scene.inertia) if three else float(scene.mass)) * e0)
     n = contact.shape[1]
-    divergence_ = np.max(distances[:, -max(1, n // 10):], axis=1)
+    divergence_ = np.max(distances[:, -max(1, n // 10) :], axis=1)
     chaotic = divergence_ > CHAOTIC_DIVERGENCE
     separation = ws.separation_collisions(distances)
     rates = np.log(1e-4 / TWIN_DELTA) / separation[chaotic & np.isfinite(separation)]
@@ -421,8 +438,10 @@ def _walls_figures(settings: Settings, save, bar) -> list:
             plotting.draw_floor_section(ax, points2[~chaotic2], markersize=0.8)
         plotting.draw_floor_section(ax, points2[0], colors="tab:red", markersize=1.0)
         plotting.draw_floor_section_bounds(ax, scene2, energy)
-        ax.set_title(f"2D, h = {h:g}: {100 * record2['chaotic_fraction']:.0f}% chaotic\n"
-                     f"twins 1e-4 apart after {record2['median_separation_collisions']:.0f} collisions")
+        ax.set_title(
+            f"2D, h = {h:g}: {100 * record2['chaotic_fraction']:.0f}% chaotic\n"
+            f"twins 1e-4 apart after {record2['median_separation_collisions']:.0f} collisions"
+        )
         ax = axes[1, j]
         plotting.draw_floor_section(ax, points3[chaotic3][:, ::2], "3d", colors="0.75", markersize=0.6)
         if (~chaotic3).any():
@@ -432,13 +451,22 @@ def _walls_figures(settings: Settings, save, bar) -> list:
         if j:
             axes[0, j].set_ylabel("")
             axes[1, j].set_ylabel("")
-    fig.suptitle(f"Stick between walls (ell = 1, I = M ell^2, E' = 1/2), {count} orbits x {n} collisions per panel: "
-                 f"floor sections, 2D (top; red: one orbit) and 3D with I w_z = {settings.walls_spin:g} sqrt(2 I E') "
-                 "(bottom); grey: chaotic, colours: regular")
+    fig.suptitle(
+        f"Stick between walls (ell = 1, I = M ell^2, E' = 1/2), {count} orbits x {n} collisions per panel: "
+        f"floor sections, 2D (top; red: one orbit) and 3D with I w_z = {settings.walls_spin:g} sqrt(2 I E') "
+        "(bottom); grey: chaotic, colours: regular"
+    )
     path = save(fig, WALLS_FILES[0])
-    out.append({"name": "walls_sections", "file": path,
-                "description": "stick between walls: 2D floor sections (top) and 3D reduced sections at L_z != 0 "
-                               "(bottom) as h varies", "panels": records, "seconds": time.perf_counter() - t0})
+    out.append(
+        {
+            "name": "walls_sections",
+            "file": path,
+            "description": "stick between walls: 2D floor sections (top) and 3D reduced sections at L_z != 0 "
+            "(bottom) as h varies",
+            "panels": records,
+            "seconds": time.perf_counter() - t0,
+        }
+    )
     bar.advance("walls: sections")
 
     t0 = time.perf_counter()
@@ -450,15 +478,18 @@ def _walls_figures(settings: Settings, save, bar) -> list:
         embedded = _embed_2d(flights["seeds2"])
         orb3z, dist3z = ws.orbits_with_twin_distances(scene3, embedded, n, TWIN_DELTA)
         points3z = np.asarray(ws.reduced_wall_section(scene3, orb3z.state, orb3z.contact))
-        record3z, _ = _walls_panel(f"3D, h = {float(scene3.h):g}, L_z = 0", scene3, embedded, orb3z, points3z,
-                                   dist3z)
+        record3z, _ = _walls_panel(f"3D, h = {float(scene3.h):g}, L_z = 0", scene3, embedded, orb3z, points3z, dist3z)
         records.append(record3z)
         k = settings.walls_flight_collisions
         panels = [
             (scene2, flights["seeds2"][0], flights["orb2"], "2D: straight flights (theta unwrapped)"),
             (scene3, embedded[0], orb3z, "3D, L_z = 0: the same orbit (polar angle)"),
-            (scene3, flights["seeds3"][0], flights["orb3"],
-             f"3D, I w_z = {settings.walls_spin:g} sqrt(2 I E'): curved flights"),
+            (
+                scene3,
+                flights["seeds3"][0],
+                flights["orb3"],
+                f"3D, I w_z = {settings.walls_spin:g} sqrt(2 I E'): curved flights",
+            ),
         ]
         fig = Figure(figsize=(15, 6.2), layout="constrained")
         axes = fig.subplots(1, 3)
@@ -466,12 +497,20 @@ def _walls_figures(settings: Settings, save, bar) -> list:
             one = type(orb)(t=np.asarray(orb.t)[0], contact=np.asarray(orb.contact)[0], state=np.asarray(orb.state)[0])
             plotting.draw_wall_flights(ax, scene, state0, one, collisions=k)
             ax.set_title(title)
-        fig.suptitle(f"The same start on the floor section, h = {float(scene2.h):g}, ell = 1: "
-                     f"{k} flights in the (kappa theta, z) plane (kappa = ell); dotted: the L_z barrier")
+        fig.suptitle(
+            f"The same start on the floor section, h = {float(scene2.h):g}, ell = 1: "
+            f"{k} flights in the (kappa theta, z) plane (kappa = ell); dotted: the L_z barrier"
+        )
         path = save(fig, WALLS_FILES[1])
-        out.append({"name": "walls_3d_flights", "file": path,
-                    "description": "flights in the (ell theta, z) plane: 2D, 3D with L_z = 0, 3D with L_z != 0",
-                    "panels": records, "seconds": time.perf_counter() - t0})
+        out.append(
+            {
+                "name": "walls_3d_flights",
+                "file": path,
+                "description": "flights in the (ell theta, z) plane: 2D, 3D with L_z = 0, 3D with L_z != 0",
+                "panels": records,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
     bar.advance("walls: 3D flights")
     return out
 
@@ -497,18 +536,34 @@ def _ellipse_figures(settings: Settings, save, bar) -> list:
         points = np.asarray(scene.section(orb.state, orb.contact))
         energies = np.asarray(scene.energy(orb.state))
         e0 = np.asarray(scene.energy(states0))[:, None]
-        records.append({"label": label, "scene": {"a": a, "b": b, "ell": float(scene.ell), "kind": scene.kind,
-                                                  "inertia": float(scene.inertia), "mass": float(scene.mass)},
-                        "orbits": count, "collisions_per_orbit": n, "collisions": count * n,
-                        "energy_drift": float(np.max(np.abs(energies / e0 - 1.0))), "energy": ENERGY})
+        records.append(
+            {
+                "label": label,
+                "scene": {
+                    "a": a,
+                    "b": b,
+                    "ell": float(scene.ell),
+                    "kind": scene.kind,
+                    "inertia": float(scene.inertia),
+                    "mass": float(scene.mass),
+                },
+                "orbits": count,
+                "collisions_per_orbit": n,
+                "collisions": count * n,
+                "energy_drift": float(np.max(np.abs(energies / e0 - 1.0))),
+                "energy": ENERGY,
+            }
+        )
         panels.append((label, points))
     fig = Figure(figsize=(15, 4.8), layout="constrained")
     ax_orbit, *ax_sections = fig.subplots(1, 3)
-    one = type(trajectory)(t=np.asarray(trajectory.t), contact=np.asarray(trajectory.contact),
-                           state=np.asarray(trajectory.state))
+    one = type(trajectory)(
+        t=np.asarray(trajectory.t), contact=np.asarray(trajectory.contact), state=np.asarray(trajectory.state)
+    )
     draw_ellipse_orbit(ax_orbit, stick, state0, one, "tab:blue")
-    ax_orbit.set_title(f"stick, a = {a:g}, b = {b:g}, ell = {ELLIPSE_ELL:g}: "
-                       f"{settings.ellipse_trajectory_collisions} collisions")
+    ax_orbit.set_title(
+        f"stick, a = {a:g}, b = {b:g}, ell = {ELLIPSE_ELL:g}: {settings.ellipse_trajectory_collisions} collisions"
+    )
     colors = plotting.orbit_colors(count)
     for ax, (_label, points) in zip(ax_sections, panels):
         for k in range(count):
@@ -522,8 +577,15 @@ def _ellipse_figures(settings: Settings, save, bar) -> list:
     fig.suptitle(f"Stick in an ellipse: {count} orbits x {n} collisions per section, E = 1/2")
     path = save(fig, ELLIPSE_FILES[0])
     bar.advance("ellipse")
-    return [{"name": "ellipse", "file": path, "panels": records, "seconds": time.perf_counter() - t0,
-             "description": "stick in an ellipse: one trajectory, the point's Birkhoff section, the stick's"}]
+    return [
+        {
+            "name": "ellipse",
+            "file": path,
+            "panels": records,
+            "seconds": time.perf_counter() - t0,
+            "description": "stick in an ellipse: one trajectory, the point's Birkhoff section, the stick's",
+        }
+    ]
 
 
 def _embed_2d(states2d) -> np.ndarray:
@@ -533,8 +595,9 @@ def _embed_2d(states2d) -> np.ndarray:
     return np.stack([x, zero, z, np.sin(th), zero, np.cos(th), vx, zero, vz, zero, om, zero], axis=-1)
 
 
-def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: bool = True,
-                 settings: Settings | None = None) -> dict:
+def make_figures(
+    out_dir: str = "figures", *, quick: bool = False, progress: bool = True, settings: Settings | None = None
+) -> dict:
     """Compute and write every figure and the summary into ``out_dir``; return the summary.
 
     Args:
@@ -559,8 +622,15 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         return name
 
     def add_figure(name: str, fig: Figure, png: str, description: str, panels: list, t0: float) -> None:
-        figures.append({"name": name, "file": save(fig, png), "description": description,
-                        "panels": panels, "seconds": time.perf_counter() - t0})
+        figures.append(
+            {
+                "name": name,
+                "file": save(fig, png),
+                "description": description,
+                "panels": panels,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
 
     # Fig. 1 and the spiral column: one orbit at ell = 1.
     t0 = time.perf_counter()
@@ -569,16 +639,26 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     orbit1 = run_orbit(scene1, state1, settings.fig1_collisions)
     fig = plotting.trajectory_figure(scene1, state1, orbit1, wall_at=5)
     fig.suptitle("Fig. 1: a trajectory of the stick's centre, R = 2, ell = 1")
-    add_figure("fig1", fig, "fig1_trajectory.png",
-               "configuration space: centre's path, stick at contacts, rotating wall at contact 6",
-               [_panel("R = 2, ell = 1", scene1, state1, orbit1)], t0)
+    add_figure(
+        "fig1",
+        fig,
+        "fig1_trajectory.png",
+        "configuration space: centre's path, stick at contacts, rotating wall at contact 6",
+        [_panel("R = 2, ell = 1", scene1, state1, orbit1)],
+        t0,
+    )
     bar.advance("Fig. 1")
 
     t0 = time.perf_counter()
     fig = plotting.spiral_column_figure(scene1, state1, orbit1, collisions=min(7, settings.fig1_collisions))
-    add_figure("spiral_column", fig, "spiral_column.png",
-               "the Fig. 1 orbit as a point moving in straight lines inside the spiral column",
-               [_panel("R = 2, ell = 1", scene1, state1, orbit1)], t0)
+    add_figure(
+        "spiral_column",
+        fig,
+        "spiral_column.png",
+        "the Fig. 1 orbit as a point moving in straight lines inside the spiral column",
+        [_panel("R = 2, ell = 1", scene1, state1, orbit1)],
+        t0,
+    )
     bar.advance("spiral column")
 
     # Fig. 2: one regular and one chaotic orbit at ell = 1.9.
@@ -595,14 +675,34 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     ax = fig.add_subplot()
     colors = ["tab:blue", "tab:red"]
     labels = ["regular", "chaotic"]
-    plotting.draw_section(ax, projected2, "paper", colors=colors, labels=labels, markersize=1.2,
-                          title=f"Fig. 2: projected section, R = 2, ell = 1.9, "
-                                f"{settings.fig2_collisions} collisions each")
-    add_figure("fig2", fig, "fig2_projected_section.png",
-               "the paper's projection (L_z against phi_c) of one regular and one chaotic orbit",
-               [_panel("R = 2, ell = 1.9", scene2, states2, orbit2,
-                       orbit_kinds=labels, reduced_thickness=thick2,
-                       projected_thickness=thick2_projected, twin_divergence=divergence2.tolist())], t0)
+    plotting.draw_section(
+        ax,
+        projected2,
+        "paper",
+        colors=colors,
+        labels=labels,
+        markersize=1.2,
+        title=f"Fig. 2: projected section, R = 2, ell = 1.9, {settings.fig2_collisions} collisions each",
+    )
+    add_figure(
+        "fig2",
+        fig,
+        "fig2_projected_section.png",
+        "the paper's projection (L_z against phi_c) of one regular and one chaotic orbit",
+        [
+            _panel(
+                "R = 2, ell = 1.9",
+                scene2,
+                states2,
+                orbit2,
+                orbit_kinds=labels,
+                reduced_thickness=thick2,
+                projected_thickness=thick2_projected,
+                twin_divergence=divergence2.tolist(),
+            )
+        ],
+        t0,
+    )
     bar.advance("Fig. 2")
 
     # Fig. 3: the static lens.
@@ -613,17 +713,33 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     fig = Figure(figsize=(12, 5.2), layout="constrained")
     ax_paper, ax_birkhoff = fig.subplots(1, 2)
     chaotic3 = divergence3 > CHAOTIC_DIVERGENCE
-    _draw_regular_over_chaotic(ax_paper, np.asarray(paper_section(scene3, orbit3.state)), chaotic3, "paper",
-                               "the paper's axes (chaotic orbits grey)")
-    _draw_regular_over_chaotic(ax_birkhoff, np.asarray(reduced_section(scene3, orbit3.state)), chaotic3,
-                               "birkhoff", "Birkhoff coordinates of the lens")
+    _draw_regular_over_chaotic(
+        ax_paper,
+        np.asarray(paper_section(scene3, orbit3.state)),
+        chaotic3,
+        "paper",
+        "the paper's axes (chaotic orbits grey)",
+    )
+    _draw_regular_over_chaotic(
+        ax_birkhoff,
+        np.asarray(reduced_section(scene3, orbit3.state)),
+        chaotic3,
+        "birkhoff",
+        "Birkhoff coordinates of the lens",
+    )
     plotting.draw_reduced_bounds(ax_birkhoff, scene3)
-    fig.suptitle(f"Fig. 3: infinite inertia (static lens), R = 2, ell = 1.5, "
-                 f"{settings.lens_orbits} orbits x {settings.lens_collisions} collisions")
-    add_figure("fig3", fig, "fig3_lens_section.png",
-               "static lens: the paper's projection (a complete section here) and Birkhoff coordinates",
-               [_panel("R = 2, ell = 1.5, I = inf", scene3, states3, orbit3,
-                       chaotic_fraction=float(np.mean(chaotic3)))], t0)
+    fig.suptitle(
+        f"Fig. 3: infinite inertia (static lens), R = 2, ell = 1.5, "
+        f"{settings.lens_orbits} orbits x {settings.lens_collisions} collisions"
+    )
+    add_figure(
+        "fig3",
+        fig,
+        "fig3_lens_section.png",
+        "static lens: the paper's projection (a complete section here) and Birkhoff coordinates",
+        [_panel("R = 2, ell = 1.5, I = inf", scene3, states3, orbit3, chaotic_fraction=float(np.mean(chaotic3)))],
+        t0,
+    )
     bar.advance("Fig. 3")
 
     # The ell scan.
@@ -636,11 +752,13 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         panels.append((scene, record, reduced, projected, chaotic, f"ell = {ell:g}, I = M ell^2"))
         records.append(record)
     background = panels[0] if settings.ell_values and settings.ell_values[0] == 1.9 else None
-    fig = _scan_figure(panels, f"R = 2, E = 1/2, L = 0: {settings.section_orbits} orbits x "
-                               f"{settings.section_collisions} collisions per panel")
-    add_figure("ell_scan", fig, "ell_scan.png",
-               "shorter sticks: projected (top) and reduced (bottom) sections",
-               records, t0)
+    fig = _scan_figure(
+        panels,
+        f"R = 2, E = 1/2, L = 0: {settings.section_orbits} orbits x {settings.section_collisions} collisions per panel",
+    )
+    add_figure(
+        "ell_scan", fig, "ell_scan.png", "shorter sticks: projected (top) and reduced (bottom) sections", records, t0
+    )
     bar.advance("ell scan")
 
     # The inertia scan.
@@ -658,8 +776,14 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         panels.append((scene, record, reduced, projected, chaotic, f"ell = {ell:g}, I = {name}"))
         records.append(record)
     fig = _scan_figure(panels, f"R = 2, ell = {ell:g}, E = 1/2, L = 0: lighter sticks")
-    add_figure("inertia_scan", fig, "inertia_scan.png",
-               "smaller moment of inertia: projected (top) and reduced (bottom) sections", records, t0)
+    add_figure(
+        "inertia_scan",
+        fig,
+        "inertia_scan.png",
+        "smaller moment of inertia: projected (top) and reduced (bottom) sections",
+        records,
+        t0,
+    )
     bar.advance("inertia scan")
 
     # The Fig. 2 orbits in the reduced section, beside the projection.
@@ -669,15 +793,34 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
     if background is not None:
         plotting.draw_section(ax_projected, background[3], "paper", colors="0.8", markersize=0.5)
         plotting.draw_section(ax_reduced, background[2], "reduced", colors="0.8", markersize=0.5)
-    plotting.draw_section(ax_projected, projected2, "paper", colors=colors, labels=labels, markersize=1.2,
-                          title="projected (the paper's axes)")
-    plotting.draw_section(ax_reduced, reduced2, "reduced", colors=colors, labels=labels, markersize=1.2,
-                          title=f"reduced (E = 1/2, L = 0): thickness {thick2[0]:.3f} and {thick2[1]:.2f}")
+    plotting.draw_section(
+        ax_projected,
+        projected2,
+        "paper",
+        colors=colors,
+        labels=labels,
+        markersize=1.2,
+        title="projected (the paper's axes)",
+    )
+    plotting.draw_section(
+        ax_reduced,
+        reduced2,
+        "reduced",
+        colors=colors,
+        labels=labels,
+        markersize=1.2,
+        title=f"reduced (E = 1/2, L = 0): thickness {thick2[0]:.3f} and {thick2[1]:.2f}",
+    )
     plotting.draw_reduced_bounds(ax_reduced, scene2, ENERGY, ANGULAR_MOMENTUM)
     fig.suptitle("Fig. 2's orbits (R = 2, ell = 1.9); grey: other orbits of the same E and L")
-    add_figure("fig2_reduced", fig, "fig2_reduced_vs_projected.png",
-               "the Fig. 2 orbits in the reduced section (a curve and an area) beside the projection",
-               [figures[2]["panels"][0]], t0)
+    add_figure(
+        "fig2_reduced",
+        fig,
+        "fig2_reduced_vs_projected.png",
+        "the Fig. 2 orbits in the reduced section (a curve and an area) beside the projection",
+        [figures[2]["panels"][0]],
+        t0,
+    )
     bar.advance("reduced vs projected")
 
     walls_figures = _walls_figures(settings, save, bar)
@@ -690,16 +833,19 @@ def make_figures(out_dir: str = "figures", *, quick: bool = False, progress: boo
         "settings": dataclasses.asdict(settings),
         "total_seconds": time.perf_counter() - started,
         "worst_energy_drift": max(p["energy_drift"] for p in all_panels),
-        "worst_angular_momentum_drift": max(p["angular_momentum_drift"] for p in all_panels
-                                            if p["angular_momentum_drift"] is not None),
-        "total_collisions": sum(p["collisions"] for f in figures if f["name"] not in ("spiral_column", "fig2_reduced")
-                                for p in f["panels"]),
+        "worst_angular_momentum_drift": max(
+            p["angular_momentum_drift"] for p in all_panels if p["angular_momentum_drift"] is not None
+        ),
+        "total_collisions": sum(
+            p["collisions"] for f in figures if f["name"] not in ("spiral_column", "fig2_reduced") for p in f["panels"]
+        ),
         "figures": figures,
         "walls": walls_figures,
         "ellipse": ellipse_figures,
         "walls_worst_energy_drift": max((p["energy_drift"] for f in walls_figures for p in f["panels"]), default=None),
-        "walls_worst_momentum_drift": max((p["momentum_drift"] for f in walls_figures for p in f["panels"]),
-                                          default=None),
+        "walls_worst_momentum_drift": max(
+            (p["momentum_drift"] for f in walls_figures for p in f["panels"]), default=None
+        ),
     }
     with open(os.path.join(out_dir, "summary.json"), "w") as handle:
         json.dump(summary, handle, indent=1)
@@ -731,17 +877,22 @@ def summary_text(summary: dict) -> str:
                 f"{panel['collisions_per_orbit']:>10} {panel['energy_drift']:>9.1e} "
                 f"{'-' if dl is None else f'{dl:.1e}':>9} {'-' if chaotic is None else f'{chaotic:.2f}':>7}"
             )
-    lines += ["", "Energy E = 1/2 and total angular momentum L = 0 for every section orbit; R = 2, mass 1.",
-              "dE/E = max |E_j/E_0 - 1|; dL = max |L_j - L_0| / (R sqrt(2 M E_0)) "
-              "(none for the lens: L not conserved).",
-              "chaotic = share of orbits that part from a twin turned by 1e-11 rad by more than 1e-3 "
-              "(tori: < 1e-6).", ""]
+    lines += [
+        "",
+        "Energy E = 1/2 and total angular momentum L = 0 for every section orbit; R = 2, mass 1.",
+        "dE/E = max |E_j/E_0 - 1|; dL = max |L_j - L_0| / (R sqrt(2 M E_0)) (none for the lens: L not conserved).",
+        "chaotic = share of orbits that part from a twin turned by 1e-11 rad by more than 1e-3 (tori: < 1e-6).",
+        "",
+    ]
     for figure in summary["figures"]:
         lines.append(f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)")
     if summary.get("walls"):
-        lines += ["", "Stick between two flat walls: ell = 1, mass 1, I = M ell^2, E' = 1/2 (no horizontal motion).",
-                  f"{'file':<23} {'panel':<24} {'orbits':>6} {'coll/orbit':>10} {'floor':>7} {'flat':>5} "
-                  f"{'dE/E':>9} {'dP':>9} {'chaotic':>7} {'apart':>6} {'lyap':>6}"]
+        lines += [
+            "",
+            "Stick between two flat walls: ell = 1, mass 1, I = M ell^2, E' = 1/2 (no horizontal motion).",
+            f"{'file':<23} {'panel':<24} {'orbits':>6} {'coll/orbit':>10} {'floor':>7} {'flat':>5} "
+            f"{'dE/E':>9} {'dP':>9} {'chaotic':>7} {'apart':>6} {'lyap':>6}",
+        ]
         for figure in summary["walls"]:
             for panel in figure["panels"]:
                 lyap = panel["lyapunov_per_collision"]
@@ -750,17 +901,23 @@ def summary_text(summary: dict) -> str:
                     f"{panel['collisions_per_orbit']:>10} "
                     f"{panel['floor_collisions']:>7} {panel['several_contacts']:>5} {panel['energy_drift']:>9.1e} "
                     f"{panel['momentum_drift']:>9.1e} {panel['chaotic_fraction']:>7.2f} "
-                    f"{panel['median_separation_collisions']:>6.0f} {'-' if lyap is None else f'{lyap:.2f}':>6}")
-        lines += ["floor = floor collisions (section points); flat = contacts 2 (flat landings, kinks); "
-                  "dP = max drift of M vx (2D) or L_z (3D) in units of sqrt(2 M E') or sqrt(2 I E');",
-                  "chaotic = share of orbits that part from a twin ((theta_dot, eta_dot) turned by 1e-11 rad) by "
-                  "more than 1e-3; apart = median collisions until 1e-4 apart; lyap = median ln(1e7)/apart "
-                  "of the chaotic ones (per collision).", ""]
+                    f"{panel['median_separation_collisions']:>6.0f} {'-' if lyap is None else f'{lyap:.2f}':>6}"
+                )
+        lines += [
+            "floor = floor collisions (section points); flat = contacts 2 (flat landings, kinks); "
+            "dP = max drift of M vx (2D) or L_z (3D) in units of sqrt(2 M E') or sqrt(2 I E');",
+            "chaotic = share of orbits that part from a twin ((theta_dot, eta_dot) turned by 1e-11 rad) by "
+            "more than 1e-3; apart = median collisions until 1e-4 apart; lyap = median ln(1e7)/apart "
+            "of the chaotic ones (per collision).",
+            "",
+        ]
         for figure in summary["walls"]:
             lines.append(f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)")
     for figure in summary.get("ellipse", []):
         lines += ["", f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)"]
         for panel in figure["panels"]:
-            lines.append(f"  {panel['label']:<34} {panel['orbits']:>4} orbits x {panel['collisions_per_orbit']} "
-                         f"collisions, dE/E {panel['energy_drift']:.1e}")
+            lines.append(
+                f"  {panel['label']:<34} {panel['orbits']:>4} orbits x {panel['collisions_per_orbit']} "
+                f"collisions, dE/E {panel['energy_drift']:.1e}"
+            )
     return "\n".join(lines) + "\n"

@@ -27,8 +27,8 @@ import numpy as np
 from ._first_root import RootBounds, first_smallest, select
 from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE
 from ._step import where
-from ._validation import motion_is_representable as representable
 from ._validation import broadcast_parameters, check_parameter, is_concrete, on_wall_not_inwards, real_parameter
+from ._validation import motion_is_representable as representable
 
 FLOOR = 1  # contact code of end P1 on the floor (P2: -1)
 CEILING = 3  # contact code of end P1 on the ceiling (P2: -3)
@@ -42,7 +42,6 @@ _CONTACT_CODES = (FLOOR, -FLOOR, CEILING, -CEILING)
 _CORNER_ULPS = 64.0
 
 _BATCH_CHUNK = {"rotor": 64, "static": 256}
-
 
 
 def checked_parameters(h, ell, mass, inertia):
@@ -143,7 +142,12 @@ def end_gaps_closing(rise, reach_rise, sign) -> tuple:
     ``sign = -1``: the gaps' time derivatives; ``sign = +1``: the rates at which
     they close (the approach speeds).
     """
-    return -sign * (rise + reach_rise), -sign * (rise - reach_rise), sign * (rise + reach_rise), sign * (rise - reach_rise)
+    return (
+        -sign * (rise + reach_rise),
+        -sign * (rise - reach_rise),
+        sign * (rise + reach_rise),
+        sign * (rise - reach_rise),
+    )
 
 
 def _band_crossing(z0, vz, low, high):
@@ -208,7 +212,9 @@ def resolve_contact(scene, state: tuple, index: jax.Array):
     kicked = scene.kick(state, first)
     still_approaching = select(scene.end_approach_speeds(kicked), second) > 0.0
     kicked = where(several & still_approaching, scene.kick(kicked, second), kicked)
-    contact = jnp.where(several, jnp.int32(SEVERAL_CONTACTS), select(tuple(jnp.int32(c) for c in _CONTACT_CODES), index))
+    contact = jnp.where(
+        several, jnp.int32(SEVERAL_CONTACTS), select(tuple(jnp.int32(c) for c in _CONTACT_CODES), index)
+    )
     return kicked, contact
 
 

@@ -60,14 +60,13 @@ logarithms of the stretch factors are summed, so ``L`` is exact even where
 
 from __future__ import annotations
 
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._collision import _check_eagerly, _poison_if
 from . import _pallas as pallas
+from ._collision import _check_eagerly, _poison_if
 from ._scene import Scene
 from ._tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from ._validation import (
@@ -248,7 +247,7 @@ def _checked_tangent(scene, states, tangent0, per):
         return None
     raw = tangent0
     dtype = raw.dtype if hasattr(raw, "dtype") else np.asarray(raw).dtype
-    if dtype == bool or not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
+    if np.issubdtype(dtype, np.bool_) or not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
         raise ValueError(f"tangent0 must be a real array; got dtype {dtype}")
     tangent0 = jnp.asarray(raw, jnp.float64)
     size = scene.state_size
@@ -365,7 +364,13 @@ megno.__doc__ = megno.__doc__.replace("    {args}\n", _ARGS_DOC)
 
 
 def fli_map(
-    scene: Scene, states_grid, n: int, *, per: str = "collision", tangent0=None, chunk: int = MAP_CHUNK,
+    scene: Scene,
+    states_grid,
+    n: int,
+    *,
+    per: str = "collision",
+    tangent0=None,
+    chunk: int = MAP_CHUNK,
     driver: str | None = None,
 ):
     """The FLI after ``n`` collisions over a grid of starts: an array of the grid's shape.
@@ -403,8 +408,10 @@ def fli_map(
     if driver not in ("autodiff", "pallas"):
         raise ValueError(f"driver must be 'autodiff', 'pallas' or None; got {driver!r}")
     if driver == "pallas" and not kernel_applies:
-        raise ValueError("driver='pallas' needs per='collision' and a scene whose dynamical directions are "
-                         f"state coordinates ({type(scene).__name__} with per={per!r}: use driver='autodiff')")
+        raise ValueError(
+            "driver='pallas' needs per='collision' and a scene whose dynamical directions are "
+            f"state coordinates ({type(scene).__name__} with per={per!r}: use driver='autodiff')"
+        )
     n = check_count("n", n, 1, "number of collisions")
     chunk = check_count("chunk", chunk, 1, "pixels per compiled batch")
     require_x64()
@@ -434,8 +441,13 @@ def fli_map(
         # Pad the last chunk with copies of a valid start: one compiled shape.
         padded = np.concatenate([block, np.repeat(block[:1], size - count, axis=0)])
         if driver == "pallas":
-            values = _kernel_fli(scene, jnp.asarray(padded), None if tangent0 is None else jnp.asarray(tangent0), n,
-                                 jax.default_backend() == "cpu")
+            values = _kernel_fli(
+                scene,
+                jnp.asarray(padded),
+                None if tangent0 is None else jnp.asarray(tangent0),
+                n,
+                jax.default_backend() == "cpu",
+            )
         else:
             values = fli(scene, padded, n, per=per, tangent0=tangent0, n_history=1).value
         out[np.flatnonzero(valid)[begin : begin + count]] = np.asarray(values)[:count]

@@ -98,9 +98,7 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0):
     exponents = -jnp.sort(-exponents)
     # Later states come from the map itself; only the start needs checking.
     exponents, history, t_hist, t = _poison_if(~scene.is_valid(state0), exponents, history, t_hist, t)
-    return LyapunovSpectrum(
-        exponents=exponents, history=history, collisions=counts, times=t_hist, time=t, n=n, per=per
-    )
+    return LyapunovSpectrum(exponents=exponents, history=history, collisions=counts, times=t_hist, time=t, n=n, per=per)
 
 
 @eqx.filter_jit

@@ -348,8 +348,21 @@ def _solve(problem: _Problem, zeta0, max_steps):
     return zeta - step, jac
 
 
-def _periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol,
-                    parabolic_tol, frame_phi=None, zeta0=None):
+def _periodic_orbit(
+    scene,
+    guess,
+    p,
+    energy,
+    angular_momentum,
+    rotation,
+    pin_l,
+    pin_rotation,
+    max_steps,
+    tol,
+    parabolic_tol,
+    frame_phi=None,
+    zeta0=None,
+):
     problem = _Problem(scene, energy, angular_momentum, rotation, p, pin_l, pin_rotation)
     if zeta0 is None:
         start, _, contact = _collide(scene, guess)
@@ -401,8 +414,9 @@ def _periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, 
     ), frame_phi
 
 
-def _walls_periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol,
-                          parabolic_tol):
+def _walls_periodic_orbit(
+    scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol, parabolic_tol
+):
     """``find_periodic_orbit`` for the sticks between walls (see ``jaxbill._periodic_walls``)."""
     problem, first_contact = walls_orbits.make_problem(
         scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation
@@ -491,10 +505,12 @@ class _PlainProblem(eqx.Module):
         if angles.size:
             difference = difference.at[angles].set(_wrap(difference[angles]))
         gap = jnp.take(self.scene.gaps(s0), self.contact_index) / self.scene.gap_scale
-        return jnp.concatenate([
-            difference[indices] / self.scales(),
-            jnp.stack([self.scene.energy(s0) / self.energy - 1.0, gap]),
-        ])
+        return jnp.concatenate(
+            [
+                difference[indices] / self.scales(),
+                jnp.stack([self.scene.energy(s0) / self.energy - 1.0, gap]),
+            ]
+        )
 
     def __call__(self, zeta, _=None):
         s0 = self.state(zeta)
@@ -502,8 +518,9 @@ class _PlainProblem(eqx.Module):
         return self.residual_from(s0, states[-1])
 
 
-def _plain_periodic_orbit(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol,
-                          parabolic_tol):
+def _plain_periodic_orbit(
+    scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol, parabolic_tol
+):
     """``find_periodic_orbit`` for a scene with no symmetry to divide out (``periodic_symmetry = "none"``).
 
     Multipliers: the Jacobian ``J`` of ``map^p`` in the dynamical coordinates
@@ -786,11 +803,7 @@ def find_periodic_orbits(
     b = guesses.shape[0]
     e = jnp.broadcast_to(e, (b,)) if energy is not None else scene.energy(guesses)
     if pin_l:
-        l0 = (
-            jnp.broadcast_to(l0, (b,))
-            if angular_momentum is not None
-            else scene.angular_momentum(guesses)
-        )
+        l0 = jnp.broadcast_to(l0, (b,)) if angular_momentum is not None else scene.angular_momentum(guesses)
     else:
         l0 = jnp.zeros((b,))
     batch, _ = _find_jit(scene, guesses, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol)
@@ -861,8 +874,9 @@ def continue_periodic_orbit(
     z = jnp.asarray(orbit.points[0])
     for value in values:
         new_scene = _with_parameter(current_scene, parameter, value)
-        z, predicted, out = _continue_step(current_scene, new_scene, z, p, e, l0, theta, pin_l, pin_rotation,
-                                           parameter, max_steps, tol, parabolic_tol)
+        z, predicted, out = _continue_step(
+            current_scene, new_scene, z, p, e, l0, theta, pin_l, pin_rotation, parameter, max_steps, tol, parabolic_tol
+        )
         results.append(out)
         predictions.append(predicted)
         current_scene = new_scene
@@ -882,8 +896,9 @@ def _with_parameter(scene, parameter, value):
 
 
 @eqx.filter_jit
-def _continue_step(old_scene, new_scene, z, p, e, l0, theta, pin_l, pin_rotation, parameter, max_steps, tol,
-                   parabolic_tol):
+def _continue_step(
+    old_scene, new_scene, z, p, e, l0, theta, pin_l, pin_rotation, parameter, max_steps, tol, parabolic_tol
+):
     old = _Problem(old_scene, e, l0, theta, p, pin_l, pin_rotation)
     zeta = old.zeta(z)
 
@@ -898,6 +913,19 @@ def _continue_step(old_scene, new_scene, z, p, e, l0, theta, pin_l, pin_rotation
     # Predictor: the tangent of the solution branch, -J^+ dF/dq, times the step.
     predicted = old.z(zeta - jnp.linalg.pinv(jac_z) @ (jac_q * dq))
     new = _Problem(new_scene, e, l0, theta, p, pin_l, pin_rotation)
-    orbit, _ = _periodic_orbit(new_scene, None, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol,
-                               parabolic_tol, frame_phi=jnp.zeros(()), zeta0=new.zeta(predicted))
+    orbit, _ = _periodic_orbit(
+        new_scene,
+        None,
+        p,
+        e,
+        l0,
+        theta,
+        pin_l,
+        pin_rotation,
+        max_steps,
+        tol,
+        parabolic_tol,
+        frame_phi=jnp.zeros(()),
+        zeta0=new.zeta(predicted),
+    )
     return orbit.points[0], predicted, orbit

@@ -94,8 +94,9 @@ def section_size(scene) -> int:
 
 def gap_of_contact(contact):
     """Gap index 0..3 of a single contact code (+1, -1, +3, -3); 0 for others (flagged elsewhere)."""
-    return jnp.where(contact == walls.FLOOR, 0,
-                     jnp.where(contact == -walls.FLOOR, 1, jnp.where(contact == walls.CEILING, 2, 3))).astype(jnp.int32)
+    return jnp.where(
+        contact == walls.FLOOR, 0, jnp.where(contact == -walls.FLOOR, 1, jnp.where(contact == walls.CEILING, 2, 3))
+    ).astype(jnp.int32)
 
 
 def _dynamical_coordinates(scene, state):
@@ -253,8 +254,9 @@ def make_problem(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin
         tangent = jax.lax.stop_gradient(vt[1:].T)
     else:
         tangent = jnp.zeros((3, 2))
-    problem = WallsProblem(scene, start, gap, tangent, energy, angular_momentum, rotation, jnp.asarray(pin_l),
-                           jnp.asarray(pin_rotation), p)
+    problem = WallsProblem(
+        scene, start, gap, tangent, energy, angular_momentum, rotation, jnp.asarray(pin_l), jnp.asarray(pin_rotation), p
+    )
     return problem, contact
 
 

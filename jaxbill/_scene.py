@@ -31,8 +31,17 @@ NO_CONTACT = 0  # the flight never reaches a wall: dt = inf, state unchanged
 SEVERAL_CONTACTS = 2  # two or more contacts resolved in one event (a corner or kink)
 
 __all__ = [
-    "NO_CONTACT", "SEVERAL_CONTACTS", "WALL_TOLERANCE", "Scene", "HasSection", "HasCheckerFlight",
-    "CheckerFlight", "HasPeriodicSymmetry", "PERIODIC_SYMMETRIES", "SamplesStates", "SectionChart",
+    "NO_CONTACT",
+    "SEVERAL_CONTACTS",
+    "WALL_TOLERANCE",
+    "Scene",
+    "HasSection",
+    "HasCheckerFlight",
+    "CheckerFlight",
+    "HasPeriodicSymmetry",
+    "PERIODIC_SYMMETRIES",
+    "SamplesStates",
+    "SectionChart",
 ]
 
 
@@ -47,16 +56,20 @@ class Scene(Protocol):
     @property
     def batch_chunk(self) -> int:
         """Lanes per chunk in a batched run (a vmapped loop waits for its slowest lane)."""
+        ...
 
     @property
     def gap_scale(self) -> jax.Array:
         """The unit of the gaps, for ``WALL_TOLERANCE``."""
+        ...
 
     def check(self) -> None:
         """Raise ValueError for invalid concrete parameters."""
+        ...
 
     def check_state_values(self, state) -> None:
         """Scene-specific eager checks of a finite float64 numpy state ``(..., state_size)``."""
+        ...
 
     def is_valid(self, state: jax.Array) -> jax.Array:
         """Traceable: parameters and ``state`` are a valid start (for NaN poisoning).
@@ -65,12 +78,15 @@ class Scene(Protocol):
         no end through a wall by more than ``WALL_TOLERANCE``, none on a wall
         (gap ``<= 0``) without moving away from it.
         """
+        ...
 
     def motion_is_representable(self, state: jax.Array) -> jax.Array:
         """Traceable ``(...)``: the velocities' squares and the energy are ordinary float64 numbers."""
+        ...
 
-    def orbit_constants(self, state0: jax.Array) -> Any:
-        """Quantities fixed along an orbit from ``state0`` (a pytree, or None)."""
+    def orbit_constants(self, state0: tuple) -> Any:
+        """Quantities fixed along an orbit from ``state0`` (its components; a pytree, or None)."""
+        ...
 
     # How a collision is computed (see jaxbill._step): a scene whose gaps are
     # transcendental in time answers root_search and gaps_along_flight, one
@@ -79,27 +95,36 @@ class Scene(Protocol):
     @property
     def searches_for_roots(self) -> bool:
         """Static: the contact time needs the safe-step root search (else a closed form)."""
+        ...
 
     def root_search(self, state: jax.Array) -> tuple[Any, Any]:
         """``(profile, RootBounds)``: what the gaps depend on along the flight, and the search's bounds."""
+        ...
 
     def gaps_along_flight(self, profile: Any, t: jax.Array) -> tuple[jax.Array, jax.Array]:
         """``(gap, slope)``, each ``(K,)``: the gaps and their time derivatives after a flight of ``t``."""
+        ...
 
     def closed_form_contact(self, state: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array]:
         """``(t, index)``: the contact time (``inf``: never) and which gap closes."""
+        ...
 
-    def collide_at(self, state: jax.Array, t: jax.Array, index: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array]:
+    def collide_at(
+        self, state: jax.Array, t: jax.Array, index: jax.Array, constants: Any
+    ) -> tuple[jax.Array, jax.Array]:
         """``(state, contact)``: the flight to ``t`` and the impulse(s) of the contact in gap ``index``."""
 
     def gaps(self, state: jax.Array) -> jax.Array:
         """Contact gaps ``(..., K)``, >= 0 inside."""
+        ...
 
     def approach_speeds(self, state: jax.Array) -> jax.Array:
         """Rate at which each gap closes ``(..., K)``, > 0 when approaching its wall."""
+        ...
 
     def energy(self, state: jax.Array) -> jax.Array:
         """Kinetic energy ``(...)``."""
+        ...
 
 
 # ---------------------------------------------------------------------------
@@ -173,14 +198,17 @@ class HasSection(Protocol):
         """Section points ``(..., 2)`` of states ``(..., S)`` just after collisions (``contacts (...)``
         their codes, for scenes that need them); ``name`` one of ``sections`` (default: the
         area-preserving one). Traceable."""
+        ...
 
     def section_state(self, point: jax.Array, **invariants) -> jax.Array:
         """The state ``(..., S)`` just after a collision at the area-preserving section's
         ``point (..., 2)`` with the given invariants (NaN where unreachable)."""
+        ...
 
     @property
     def section_chart(self) -> SectionChart:
         """How ``jb.explore`` seeds, reads and draws the area-preserving section."""
+        ...
 
 
 @runtime_checkable
@@ -198,6 +226,7 @@ class CheckerFlight(Protocol):
 
     def check(self, scene: Any, state0: np.ndarray, n: int, **options) -> Any:
         """A ``CheckResult`` of ``n`` collisions from ``state0`` (shape ``(S,)``)."""
+        ...
 
 
 class HasCheckerFlight(Protocol):
@@ -205,6 +234,7 @@ class HasCheckerFlight(Protocol):
 
     def checker_flight(self) -> CheckerFlight:
         """The ``CheckerFlight`` of this (unbatched, concrete) scene."""
+        ...
 
 
 # The symmetries periodic-orbit search can divide out (``HasPeriodicSymmetry``):
@@ -232,6 +262,7 @@ class SamplesStates(Protocol):
     def sample_states(self, key: jax.Array, count: int, energy: float, **invariants) -> jax.Array:
         """``(count, S)`` valid states of energy ``energy`` (and the other pinned ``invariants``),
         distributed with the Liouville measure restricted to that shell."""
+        ...
 
 
 def chosen_section(scene: HasSection, name: str | None) -> str:

@@ -60,14 +60,14 @@ def local_thickness(points, neighbours: int = 12, scale=None, samples: int | Non
     out = np.empty(len(queries))
     chunk = max(1, 2_000_000 // len(pts))
     for start in range(0, len(queries), chunk):
-        block = queries[start:start + chunk]
+        block = queries[start : start + chunk]
         d2 = np.sum((block[:, None, :] - pts[None, :, :]) ** 2, axis=-1)
         nearest = np.argpartition(d2, neighbours, axis=1)[:, :neighbours]
         hood = pts[nearest]  # (b, k, 2)
         hood = hood - hood.mean(axis=1, keepdims=True)
         cov = np.einsum("bki,bkj->bij", hood, hood) / neighbours
         eig = np.linalg.eigvalsh(cov)  # ascending
-        out[start:start + chunk] = np.sqrt(np.maximum(eig[:, 0], 0.0) / np.maximum(eig[:, 1], 1e-300))
+        out[start : start + chunk] = np.sqrt(np.maximum(eig[:, 0], 0.0) / np.maximum(eig[:, 1], 1e-300))
     return out
 
 
@@ -180,7 +180,7 @@ def divergence(scene, states, twin_states_, states0) -> np.ndarray:
         + np.sum((first[..., 3:5] - second[..., 3:5]) ** 2, axis=-1) / speed**2
     )
     n = difference.shape[-1]
-    tail = difference[:, -max(1, n // 10):]
+    tail = difference[:, -max(1, n // 10) :]
     return np.nan_to_num(np.max(tail, axis=1), nan=np.inf)
 
 
@@ -205,7 +205,7 @@ def twin_divergence(scene, states0, n: int, delta: float = 1e-11) -> np.ndarray:
     """
     states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
     both = np.asarray(_orbit(scene, np.concatenate([states0, twin_states(states0, delta)]), n).state)
-    return divergence(scene, both[: len(states0)], both[len(states0):], states0)
+    return divergence(scene, both[: len(states0)], both[len(states0) :], states0)
 
 
 def is_chaotic(scene, states0, n: int, threshold: float = CHAOTIC_DIVERGENCE) -> np.ndarray:

@@ -213,8 +213,7 @@ def birkhoff_section(scene, states: jax.Array) -> jax.Array:
     """
     if scene.kind == "rotor":
         raise ValueError(
-            "birkhoff_section needs a fixed wall (inertia = inf or ell = 0); "
-            "for a finite inertia use reduced_section"
+            "birkhoff_section needs a fixed wall (inertia = inf or ell = 0); for a finite inertia use reduced_section"
         )
     return reduced_section(scene, states)
 
@@ -366,8 +365,9 @@ def _halton(index: np.ndarray, base: int) -> np.ndarray:
     return out
 
 
-def section_seeds(scene, count: int, energy=0.5, angular_momentum=0.0, *, half: bool = True,
-                  offset: int = 1) -> jax.Array:
+def section_seeds(
+    scene, count: int, energy=0.5, angular_momentum=0.0, *, half: bool = True, offset: int = 1
+) -> jax.Array:
     """``count`` start states spread evenly over the reachable part of the ``(s, p)`` section.
 
     The points ``(s, p)`` are a Halton sequence (bases 2 and 3) over

@@ -110,6 +110,7 @@ def shard_over_orbits(batched_function, mesh: Mesh, batched_args: tuple[bool, ..
     # check_vma=False: the orbit code mixes per-device values with loop
     # counters that start replicated (e.g. the root search's step count), which
     # the varying-axes checker rejects; there are no collectives to check here.
-    sharded = jax.shard_map(batched_function, mesh=mesh, in_specs=specs, out_specs=PartitionSpec(ORBIT_AXIS),
-                            check_vma=False)
+    sharded = jax.shard_map(
+        batched_function, mesh=mesh, in_specs=specs, out_specs=PartitionSpec(ORBIT_AXIS), check_vma=False
+    )
     return jax.jit(sharded)

@@ -163,8 +163,15 @@ def begin_flight(scene, state: tuple, constants: Any) -> Lane:
         return Lane(state, t, none, jnp.isinf(t), none, profile, bounds)
     t, index = scene.closed_form_contact(state, constants)
     # Shapes from t, not scalar literals: inside a kernel every lane field is a block.
-    return Lane(state, t, index.astype(jnp.int32), jnp.isfinite(t) | jnp.isnan(t) | jnp.isinf(t),
-                jnp.zeros(jnp.shape(t), jnp.int32), None, None)
+    return Lane(
+        state,
+        t,
+        index.astype(jnp.int32),
+        jnp.isfinite(t) | jnp.isnan(t) | jnp.isinf(t),
+        jnp.zeros(jnp.shape(t), jnp.int32),
+        None,
+        None,
+    )
 
 
 def search_step(scene, lane: Lane) -> Lane:

@@ -93,7 +93,9 @@ class StickBetweenWalls3D(eqx.Module):
         u, w = state[..., 3:6], state[..., 9:12]
         norm = np.linalg.norm(u, axis=-1)
         if np.any(np.abs(norm - 1.0) > UNIT_TOLERANCE):
-            raise ValueError(f"u = state[3:6] must be a unit vector (to {UNIT_TOLERANCE:g}); got |u| = {norm.ravel()[:4].tolist()}")
+            raise ValueError(
+                f"u = state[3:6] must be a unit vector (to {UNIT_TOLERANCE:g}); got |u| = {norm.ravel()[:4].tolist()}"
+            )
         along = np.abs(np.sum(u * w, axis=-1))
         if np.any(along > UNIT_TOLERANCE * np.maximum(np.linalg.norm(w, axis=-1), 1.0)):
             raise ValueError(
@@ -222,8 +224,20 @@ class StickBetweenWalls3D(eqx.Module):
         end_rise = vz + arm * (wx * uy - wy * ux)
         impulse = -2.0 * end_rise / (inv_mass + (lever_x * lever_x + lever_y * lever_y) * inv_inertia)
         spin_kick = impulse * inv_inertia
-        return (x, y, z, ux, uy, uz, vx, vy, vz + impulse * inv_mass,
-                wx + spin_kick * lever_x, wy + spin_kick * lever_y, wz)
+        return (
+            x,
+            y,
+            z,
+            ux,
+            uy,
+            uz,
+            vx,
+            vy,
+            vz + impulse * inv_mass,
+            wx + spin_kick * lever_x,
+            wy + spin_kick * lever_y,
+            wz,
+        )
 
     # -- invariants -------------------------------------------------------------------
 

@@ -52,8 +52,6 @@ KINDS = ("rotor", "lens", "circle")
 _KICK_DENOMINATOR = math.pi / 2
 
 
-
-
 def _checked_parameters(R, ell, mass, inertia):
     """Validate concrete parameters; return them broadcast to one shape, and the scene kind."""
     R, ell, mass = (real_parameter(name, v) for name, v in (("R", R), ("ell", ell), ("mass", mass)))
@@ -129,9 +127,7 @@ class StickInCircle(eqx.Module):
                 inertia = mass * ell**2
             lens_literal = isinstance(inertia, float) and math.isinf(inertia)
             guessed = "lens" if lens_literal else "rotor"
-        self.R, self.ell, self.mass, self.inertia = (
-            jnp.asarray(v, dtype=jnp.float64) for v in (R, ell, mass, inertia)
-        )
+        self.R, self.ell, self.mass, self.inertia = (jnp.asarray(v, dtype=jnp.float64) for v in (R, ell, mass, inertia))
         if kind is not None and kind not in KINDS:
             raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
         self.kind = guessed if kind is None else kind
@@ -437,8 +433,13 @@ class StickInCircle(eqx.Module):
         turning = self.kind == "rotor"
         scale = jnp.sqrt(self.inertia / self.mass) if turning else jnp.ones_like(self.R)
         return ColumnFlight(
-            scene=self, scale=scale, length=self.R, reach=jnp.sqrt(self.R**2 - self.ell**2),
-            hessian_bound=jnp.ones_like(self.R), frozen=self.kind == "lens", single_sheet=self.kind == "circle",
+            scene=self,
+            scale=scale,
+            length=self.R,
+            reach=jnp.sqrt(self.R**2 - self.ell**2),
+            hessian_bound=jnp.ones_like(self.R),
+            frozen=self.kind == "lens",
+            single_sheet=self.kind == "circle",
         )
 
     def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):
@@ -450,7 +451,7 @@ class StickInCircle(eqx.Module):
 
 
 def _spin_term(kind, omega, term):
-    """``term`` (``I omega^2 / 2`` or ``I omega``); for the circle 0 where ``omega = 0`` (``inertia = inf``: not NaN)."""
+    """``term`` (``I omega^2 / 2`` or ``I omega``); for the circle 0 where ``omega = 0`` (``I = inf``: not NaN)."""
     return jnp.where(omega == 0.0, 0.0, term) if kind == "circle" else term
 
 

@@ -102,7 +102,9 @@ def _checked_parameters(a, b, ell, mass, inertia):
     check_parameter("ell", ell, ell >= 0, ">= 0")
     a_, b_, ell_ = np.broadcast_arrays(a, b, ell)
     check_parameter(
-        "ell", ell_, ell_ < np.maximum(a_, b_),
+        "ell",
+        ell_,
+        ell_ < np.maximum(a_, b_),
         "< max(a, b) (the stick must fit along the major axis, the longest chord)",
     )
     check_parameter("mass", mass, mass > 0, "> 0")
@@ -267,7 +269,7 @@ class StickInEllipse(eqx.Module):
         return state, RootBounds(*self.root_search_setup(state))
 
     def gaps_along_flight(self, state: tuple, t: jax.Array):
-        """Both ends' gaps ``ab - P_k^T D P_k`` (area units) and their time derivatives after a flight of ``t`` (2-tuples)."""
+        """Both ends' gaps ``ab - P_k^T D P_k`` (area) and their time derivatives after a flight of ``t`` (2-tuples)."""
         x, y, alpha, vx, vy, omega = state
         phi = alpha + omega * t
         cu, su = jnp.cos(phi), jnp.sin(phi)
@@ -505,7 +507,6 @@ class StickInEllipse(eqx.Module):
         state = jnp.asarray(state)
         return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)
 
-
     # -- what the analyses ask (jaxbill._scene's capability protocols) ---------------------
 
     sections: ClassVar[tuple[str, ...]] = SECTIONS
@@ -551,8 +552,13 @@ class StickInEllipse(eqx.Module):
         scale = jnp.sqrt(self.inertia / self.mass) if turning else jnp.ones_like(self.a)
         major, minor = jnp.maximum(self.a, self.b), jnp.minimum(self.a, self.b)
         return ColumnFlight(
-            scene=self, scale=scale, length=major, reach=major, hessian_bound=major / minor,
-            frozen=self.kind == "static", single_sheet=self.kind == "point",
+            scene=self,
+            scale=scale,
+            length=major,
+            reach=major,
+            hessian_bound=major / minor,
+            frozen=self.kind == "static",
+            single_sheet=self.kind == "point",
         )
 
     def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):

@@ -288,7 +288,9 @@ def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
     (the kernel in Pallas's interpreter; the XLA loop in blocks of ``width`` lanes)."""
     section = plan.section
     machine_plan = lanes.Plan(
-        plan.record, plan.every, plan.rows,
+        plan.record,
+        plan.every,
+        plan.rows,
         where=None if section is None else section.where,
         project=None if section is None else section.project,
     )
@@ -305,8 +307,12 @@ def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
             records = tuple(_poison_rows(invalid, r) for r in records)
         elif plan.record == "section":
             point, t, number, fill = records
-            records = (_poison_rows(invalid, point[:, : plan.rows]), _poison_rows(invalid, t[:, : plan.rows]),
-                       number[:, : plan.rows], fill)
+            records = (
+                _poison_rows(invalid, point[:, : plan.rows]),
+                _poison_rows(invalid, t[:, : plan.rows]),
+                number[:, : plan.rows],
+                fill,
+            )
         return _Carry(*new_carry), records
 
     return run_machine
@@ -358,7 +364,7 @@ class _Engine:
         _, index = host_rows(self.device_state0)
         self.local_rows = index < self.batch  # padding lanes are computed, never reported
         self.orbit_index = index[self.local_rows]
-        self.padding_last = not np.any(self.local_rows[self.orbit_index.size:])
+        self.padding_last = not np.any(self.local_rows[self.orbit_index.size :])
 
     def initial_carry(self, checkpoint: Checkpoint | None) -> _Carry:
         """The carry on the devices: fresh, or this process's orbits from ``checkpoint``."""
@@ -507,9 +513,7 @@ def _resolve_out(out) -> Path | None:
 
 def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, engine) -> Checkpoint | None:
     if resume is not True and out_dir is not None and (out_dir / CHECKPOINT_NAME).exists():
-        raise ValueError(
-            f"{out_dir} already holds a run; pass resume=True to continue it, or choose another directory"
-        )
+        raise ValueError(f"{out_dir} already holds a run; pass resume=True to continue it, or choose another directory")
     if resume is None or resume is False:
         return None
     if resume is True:
@@ -578,8 +582,11 @@ class _Records:
             self.base = self.records_from // every
             count = n // every - self.base
             size = engine.state0.shape[-1]
-            specs = zip(STATE_RECORD_NAMES, (np.float64, np.int32, np.float64),
-                        ((*lead, count), (*lead, count), (*lead, count, size)))
+            specs = zip(
+                STATE_RECORD_NAMES,
+                (np.float64, np.int32, np.float64),
+                ((*lead, count), (*lead, count), (*lead, count, size)),
+            )
             if out_dir is None:
                 self.states = [np.empty(shape, dtype) for _, dtype, shape in specs]
             else:
@@ -779,12 +786,14 @@ def run(
     # The directory is locked before its checkpoint is read: two calls racing
     # for it would otherwise both find it empty and both write into it.
     with _run_guard.RunGuard(out_dir) as guard:
-        return _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, devices, progress, guard,
-                           driver)
+        return _run_chunks(
+            scene, state0, n, kind, section, every, chunk, out_dir, resume, devices, progress, guard, driver
+        )
 
 
-def _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, devices, progress, guard,
-                driver) -> Run:
+def _run_chunks(
+    scene, state0, n, kind, section, every, chunk, out_dir, resume, devices, progress, guard, driver
+) -> Run:
     """``run`` once its arguments are checked and its directory (if any) is held by ``guard``."""
     engine = _Engine(scene, state0, devices, driver)
 
@@ -812,8 +821,8 @@ def _run_chunks(scene, state0, n, kind, section, every, chunk, out_dir, resume, 
     checkpoint_bytes = 2 * (state0.nbytes + lead * (state0.shape[-1] + len(CONTACT_CODES) + 5) * 8) + (1 << 16)
     records = _Records(kind, every, n, first, engine, point, out_dir, own_checkpoint, checkpoint_bytes)
 
-    show = progress if progress is not None else (
-        sys.stderr.isatty() and jax.process_index() == 0 and n - first > chunk
+    show = (
+        progress if progress is not None else (sys.stderr.isatty() and jax.process_index() == 0 and n - first > chunk)
     )
     bar = _ProgressBar(n, first, engine.batch if engine.batched else 1, show)
     done, chunks, reruns = first, 0, 0

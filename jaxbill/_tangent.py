@@ -202,9 +202,7 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
         ``(S, k)``. The collision is linearised once (the root search runs
         once) and the linear map applied to the ``k`` vectors.
     """
-    (new_state, dt), linear, contact = jax.linearize(
-        lambda s: _map_with_contact(scene, s), state, has_aux=True
-    )
+    (new_state, dt), linear, contact = jax.linearize(lambda s: _map_with_contact(scene, s), state, has_aux=True)
 
     def push(v):
         ds, dtime = linear(v)

@@ -69,7 +69,9 @@ def broadcast_parameters(**parameters) -> None:
         np.broadcast_shapes(*shapes.values())
     except ValueError:
         listed = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
-        raise ValueError(f"parameters must be scalars or arrays of one common shape (B,); got shapes {listed}") from None
+        raise ValueError(
+            f"parameters must be scalars or arrays of one common shape (B,); got shapes {listed}"
+        ) from None
 
 
 def check_count(name: str, value, minimum: int, meaning: str, maximum: int = MAX_COUNT) -> int:
@@ -132,9 +134,7 @@ def check_last_axis(scene, states, name: str = "states") -> None:
         raise ValueError(f"{name} must be real numbers; got dtype {dtype}")
     shape = np.shape(states)
     if not shape or shape[-1] != scene.state_size:
-        raise ValueError(
-            f"{name} must have shape (..., {scene.state_size}) = {scene.state_layout}; got shape {shape}"
-        )
+        raise ValueError(f"{name} must have shape (..., {scene.state_size}) = {scene.state_layout}; got shape {shape}")
 
 
 def as_states(scene, states, name: str = "states"):

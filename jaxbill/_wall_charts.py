@@ -45,8 +45,7 @@ def _walls_seeds(scene, count, invariants):
 
 
 def _walls_edge(scene, theta, invariants):
-    bound = np.asarray(floor_section_bound(scene, theta, invariants["energy"],
-                                                          invariants.get("spin", 0.0)))
+    bound = np.asarray(floor_section_bound(scene, theta, invariants["energy"], invariants.get("spin", 0.0)))
     return np.stack([-bound, bound], axis=-1)
 
 
@@ -84,8 +83,10 @@ def _draw_walls_configuration(ax, scene, state0, orb, color):
 
 WALLS_2D_CHART = SectionChart(
     title="floor section",
-    axis_labels=(r"$\theta$ mod $\pi$ (rad; stick flat at $\pi/2$)",
-                 r"$p = (I\dot\theta + M v_z\, dz/d\theta)/\sqrt{2 I E'}$"),
+    axis_labels=(
+        r"$\theta$ mod $\pi$ (rad; stick flat at $\pi/2$)",
+        r"$p = (I\dot\theta + M v_z\, dz/d\theta)/\sqrt{2 I E'}$",
+    ),
     invariant_symbols={"energy": "E'"},
     default_invariants=lambda scene: {"energy": 0.5},
     x_range=lambda scene: (0.0, math.pi),

@@ -401,15 +401,25 @@ def _flight(params, y, vxy, spin, sin_min, cfg: _Settings):
     if spin != 0.0 and sin_min < cfg.pole_tol:
         return None, None, None, 6, f"sin(psi_min) = |w_z|/|w| = {sin_min:.2e} < pole_tol = {cfg.pole_tol:g}", 0
     core = _Reduced(
-        h=jnp.asarray(h), ell=jnp.asarray(ell), mass=jnp.asarray(mass), inertia=jnp.asarray(inertia),
-        spin=jnp.asarray(spin), vxy=jnp.asarray(vxy), frozen=frozen,
+        h=jnp.asarray(h),
+        ell=jnp.asarray(ell),
+        mass=jnp.asarray(mass),
+        inertia=jnp.asarray(inertia),
+        spin=jnp.asarray(spin),
+        vxy=jnp.asarray(vxy),
+        frozen=frozen,
     )
     start_gaps = np.asarray(core.gaps(jnp.asarray(y)))
     if np.min(start_gaps) < -cfg.corner_tol * h:
         k = int(np.argmin(start_gaps))
-        return None, None, None, 7, (
-            f"the start has gap {k} = {start_gaps[k]:.3g} < -corner_tol h: an end is through a wall"
-        ), 0
+        return (
+            None,
+            None,
+            None,
+            7,
+            (f"the start has gap {k} = {start_gaps[k]:.3g} < -corner_tol h: an end is through a wall"),
+            0,
+        )
     W2 = float(core.turn_rate2(jnp.asarray(y)))
     W = math.sqrt(W2)
     vz = abs(float(y[5]))
@@ -433,8 +443,15 @@ def _flight(params, y, vxy, spin, sin_min, cfg: _Settings):
         step = min([coarse] + [d for _, d in windows])
         t1 = min([math.inf] + [until for until, _ in windows]) - t_flight
         out = _segment(
-            core, jnp.asarray(y), jnp.asarray(t1), jnp.asarray(step), cfg.solver,
-            jnp.asarray(cfg.rtol), jnp.asarray(cfg.atol), jnp.asarray(cfg.root_tol), cfg.chunk_steps,
+            core,
+            jnp.asarray(y),
+            jnp.asarray(t1),
+            jnp.asarray(step),
+            cfg.solver,
+            jnp.asarray(cfg.rtol),
+            jnp.asarray(cfg.atol),
+            jnp.asarray(cfg.root_tol),
+            cfg.chunk_steps,
             jnp.asarray(cfg.corner_tol),
         )
         status = int(out["status"])
@@ -446,10 +463,18 @@ def _flight(params, y, vxy, spin, sin_min, cfg: _Settings):
                 finer = max(step / 8.0, fine)
                 windows.append((t_flight + 2.0 * float(out["bad_len"]) + finer, finer))
                 continue
-            return None, None, None, 1, (
-                f"a gap could dip below zero unseen in the step at flight time {t_flight + float(out['t_good']):.6g} "
-                f"(steps of {fine:.3g} rule out only excursions deeper than graze_tol h = {cfg.graze_tol * h:.2g})"
-            ), n_steps
+            return (
+                None,
+                None,
+                None,
+                1,
+                (
+                    "a gap could dip below zero unseen in the step at flight time "
+                    f"{t_flight + float(out['t_good']):.6g} "
+                    f"(steps of {fine:.3g} rule out only excursions deeper than graze_tol h = {cfg.graze_tol * h:.2g})"
+                ),
+                n_steps,
+            )
         if n_steps >= cfg.max_steps and status != 0:
             return None, None, None, 2, f"no wall event within max_steps = {cfg.max_steps} solver steps", n_steps
         if status == 2:
@@ -468,8 +493,15 @@ def _flight(params, y, vxy, spin, sin_min, cfg: _Settings):
                 continue
             return None, None, None, 3, "the event root finder failed", n_steps
         tau, y_after, flag = _land(
-            core, out["y_s"], out["t_end"] - out["t_s"], k, jnp.asarray(step),
-            cfg.solver, jnp.asarray(cfg.rtol), jnp.asarray(cfg.atol), jnp.asarray(cfg.corner_tol),
+            core,
+            out["y_s"],
+            out["t_end"] - out["t_s"],
+            k,
+            jnp.asarray(step),
+            cfg.solver,
+            jnp.asarray(cfg.rtol),
+            jnp.asarray(cfg.atol),
+            jnp.asarray(cfg.corner_tol),
         )
         flag = int(flag)
         if flag in (3, 4) and step > fine:
@@ -508,10 +540,10 @@ def _scaled_deviation(a, b, scales, planar_scene: bool):
     return np.stack(
         [
             dt / t_s,
-            np.max(np.abs(sa[:, pos[0]:pos[1]] - sb[:, pos[0]:pos[1]]), axis=1) / r_s,
+            np.max(np.abs(sa[:, pos[0] : pos[1]] - sb[:, pos[0] : pos[1]]), axis=1) / r_s,
             dang,
-            np.max(np.abs(sa[:, vel[0]:vel[1]] - sb[:, vel[0]:vel[1]]), axis=1) / v_s,
-            np.max(np.abs(sa[:, spin[0]:spin[1]] - sb[:, spin[0]:spin[1]]), axis=1) / w_s,
+            np.max(np.abs(sa[:, vel[0] : vel[1]] - sb[:, vel[0] : vel[1]]), axis=1) / v_s,
+            np.max(np.abs(sa[:, spin[0] : spin[1]] - sb[:, spin[0] : spin[1]]), axis=1) / w_s,
         ],
         axis=1,
     )
@@ -629,8 +661,10 @@ def check_walls(
     start = time.perf_counter()
     flight = scene.checker_flight() if hasattr(scene, "checker_flight") else None
     if not isinstance(flight, ReducedWallsFlight):
-        raise TypeError(f"check_walls takes a scene whose checker flight is a ReducedWallsFlight "
-                        f"(StickBetweenWalls2D or 3D), not {type(scene).__name__}")
+        raise TypeError(
+            f"check_walls takes a scene whose checker flight is a ReducedWallsFlight "
+            f"(StickBetweenWalls2D or 3D), not {type(scene).__name__}"
+        )
     n = check_count("n", n, 1, "number of collisions", MAX_STORED_COUNT)
     planar_scene = flight.planar
     size = scene.state_size
@@ -649,9 +683,16 @@ def check_walls(
     inertia = 1.0 if frozen else float(scene.inertia)
     params = (h, ell, mass, inertia, frozen)
     cfg = _Settings(
-        solver=diffrax.Dopri8() if solver is None else solver, rtol=rtol, atol=atol, root_tol=root_tol,
-        chunk_steps=chunk_steps, max_steps=max_steps, corner_tol=corner_tol, graze_tol=graze_tol,
-        coarse_turn=coarse_turn, pole_tol=pole_tol,
+        solver=diffrax.Dopri8() if solver is None else solver,
+        rtol=rtol,
+        atol=atol,
+        root_tol=root_tol,
+        chunk_steps=chunk_steps,
+        max_steps=max_steps,
+        corner_tol=corner_tol,
+        graze_tol=graze_tol,
+        coarse_turn=coarse_turn,
+        pole_tol=pole_tol,
     )
 
     def to_reduced(s):

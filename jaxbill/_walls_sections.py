@@ -305,8 +305,13 @@ def floor_state(scene, theta, p, energy=0.5, spin=0.0) -> jax.Array:
     _check_turning(scene)
     if not _is_3d(scene) and not (isinstance(spin, (int, float)) and spin == 0.0):
         raise ValueError("a 2D stick has no spin about the vertical: spin must be 0")
-    return _floor_state(scene, jnp.asarray(theta, dtype=jnp.float64), jnp.asarray(p, dtype=jnp.float64),
-                        jnp.asarray(energy, dtype=jnp.float64), jnp.asarray(spin, dtype=jnp.float64))
+    return _floor_state(
+        scene,
+        jnp.asarray(theta, dtype=jnp.float64),
+        jnp.asarray(p, dtype=jnp.float64),
+        jnp.asarray(energy, dtype=jnp.float64),
+        jnp.asarray(spin, dtype=jnp.float64),
+    )
 
 
 @jax.jit
@@ -323,8 +328,9 @@ def _floor_state(scene, theta, p, energy, spin):
         # e_theta = (cos, 0, -sin) and I sin^2(theta) phi_dot = spin.
         phi_rate_sin = jnp.where(spin == 0.0, 0.0, spin / (scene.inertia * jnp.where(sin == 0.0, 1.0, sin)))
         w = jnp.stack([-phi_rate_sin * cos, theta_dot, phi_rate_sin * sin], axis=-1)
-        state = jnp.concatenate([jnp.stack([zero, zero, z], axis=-1), u,
-                                 jnp.stack([zero, zero, vz], axis=-1), w], axis=-1)
+        state = jnp.concatenate(
+            [jnp.stack([zero, zero, z], axis=-1), u, jnp.stack([zero, zero, vz], axis=-1), w], axis=-1
+        )
     else:
         state = jnp.stack([zero, z, theta, zero, vz, theta_dot], axis=-1)
     return jnp.where(ok[..., None], state, jnp.nan)
@@ -412,8 +418,9 @@ def flight_paths(scene, state0, orbit, points_per_flight: int = 40) -> np.ndarra
     dts = np.diff(np.concatenate([[0.0], np.asarray(orbit.t)]))
     if not _is_3d(scene):
         # unwrap: the angle at each start is state0's plus the exact turning omega dt so far
-        turned = np.concatenate([[start[2]], start[2] + np.cumsum(np.concatenate([[start[5]], states[:-1, 5]])
-                                                                   * dts)[:-1]])
+        turned = np.concatenate(
+            [[start[2]], start[2] + np.cumsum(np.concatenate([[start[5]], states[:-1, 5]]) * dts)[:-1]]
+        )
         starts = starts.copy()
         starts[:, 2] = turned
     frac = np.linspace(0.0, 1.0, points_per_flight)
@@ -469,15 +476,20 @@ def wall_twin_distances(scene, states, twin_states, states0) -> np.ndarray:
     kappa = float(np.asarray(gyration_radius(scene)))
     speed = np.sqrt(2.0 * _internal_energy_np(scene, states0) / float(np.asarray(scene.inertia)))[:, None]
     if _is_3d(scene):
-        parts = [(first[..., 2] - second[..., 2]) / h,
-                 *(first[..., k] - second[..., k] for k in (3, 4, 5)),
-                 (first[..., 8] - second[..., 8]) / (kappa * speed),
-                 *((first[..., k] - second[..., k]) / speed for k in (9, 10, 11))]
+        parts = [
+            (first[..., 2] - second[..., 2]) / h,
+            *(first[..., k] - second[..., k] for k in (3, 4, 5)),
+            (first[..., 8] - second[..., 8]) / (kappa * speed),
+            *((first[..., k] - second[..., k]) / speed for k in (9, 10, 11)),
+        ]
     else:
         turn = np.remainder(first[..., 2] - second[..., 2] + np.pi, 2.0 * np.pi) - np.pi
-        parts = [(first[..., 1] - second[..., 1]) / h, turn,
-                 (first[..., 4] - second[..., 4]) / (kappa * speed),
-                 (first[..., 5] - second[..., 5]) / speed]
+        parts = [
+            (first[..., 1] - second[..., 1]) / h,
+            turn,
+            (first[..., 4] - second[..., 4]) / (kappa * speed),
+            (first[..., 5] - second[..., 5]) / speed,
+        ]
     return np.nan_to_num(np.sqrt(sum(part**2 for part in parts)), nan=np.inf)
 
 
@@ -485,7 +497,7 @@ def wall_divergence(scene, states, twin_states, states0) -> np.ndarray:
     """Largest ``wall_twin_distances`` over the last tenth of the collisions, ``(B,)``."""
     difference = wall_twin_distances(scene, states, twin_states, states0)
     n = difference.shape[-1]
-    return np.max(difference[:, -max(1, n // 10):], axis=1)
+    return np.max(difference[:, -max(1, n // 10) :], axis=1)
 
 
 def separation_collisions(distances, level: float = 1e-4) -> np.ndarray:
@@ -505,7 +517,7 @@ def orbits_with_twins(scene, states0, n: int, delta: float = 1e-11):
     states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
     orb, distances = orbits_with_twin_distances(scene, states0, n, delta)
     n = distances.shape[-1]
-    return orb, np.max(distances[:, -max(1, n // 10):], axis=1)
+    return orb, np.max(distances[:, -max(1, n // 10) :], axis=1)
 
 
 def orbits_with_twin_distances(scene, states0, n: int, delta: float = 1e-11):

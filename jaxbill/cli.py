@@ -18,8 +18,10 @@ def _demo(args: argparse.Namespace) -> int:
 
     scene = jb.StickInCircle(R=args.R, ell=args.ell)
     state0 = jnp.asarray(DEFAULT_DEMO_STATE)
-    print(f"jaxbill {jb.__version__} on {jax.devices()[0].platform}: "
-          f"stick in a circle, R = {args.R}, ell = {args.ell}, mass = 1, inertia = mass ell^2")
+    print(
+        f"jaxbill {jb.__version__} on {jax.devices()[0].platform}: "
+        f"stick in a circle, R = {args.R}, ell = {args.ell}, mass = 1, inertia = mass ell^2"
+    )
     print("state = [x, y, alpha, vx, vy, omega]; contact +1 = end P1 = c + ell u, -1 = end P2\n")
     start = time.perf_counter()
     orb = jax.block_until_ready(jb.orbit(scene, state0, args.n))
@@ -42,9 +44,11 @@ def _figures(args: argparse.Namespace) -> int:
 
     summary = make_figures(args.out, quick=args.quick, progress=not args.no_progress)
     figures = len(summary["figures"]) + len(summary.get("walls", []))
-    print(f"wrote {figures} figures, summary.json and summary.txt to {args.out} "
-          f"in {summary['total_seconds']:.1f} s ({summary['total_collisions']} collisions; worst relative "
-          f"energy drift {summary['worst_energy_drift']:.1e})")
+    print(
+        f"wrote {figures} figures, summary.json and summary.txt to {args.out} "
+        f"in {summary['total_seconds']:.1f} s ({summary['total_collisions']} collisions; worst relative "
+        f"energy drift {summary['worst_energy_drift']:.1e})"
+    )
     return 0
 
 
@@ -74,8 +78,11 @@ def _explore(args: argparse.Namespace) -> int:
         matplotlib.use("Agg")  # no window: seed, click, save
     from ._explorer import explore, sample_clicks
 
-    invariants = {name: value for name, value in (("energy", args.energy), ("angular_momentum", args.L),
-                                                  ("spin", args.spin)) if value is not None}
+    invariants = {
+        name: value
+        for name, value in (("energy", args.energy), ("angular_momentum", args.L), ("spin", args.spin))
+        if value is not None
+    }
     explorer = explore(_explore_scene(args), save_path=args.save or "jaxbill_explorer.png", **invariants)
     if not args.save:
         import matplotlib.pyplot as plt
@@ -87,8 +94,10 @@ def _explore(args: argparse.Namespace) -> int:
         explorer.click(x, y)
         print(explorer.status)
     path = explorer.save(args.save)
-    print(f"wrote {path}: {explorer.chart.title} of {type(explorer.scene).__name__} with "
-          f"{len(explorer.orbits)} clicked orbits over a {explorer.survey_message}")
+    print(
+        f"wrote {path}: {explorer.chart.title} of {type(explorer.scene).__name__} with "
+        f"{len(explorer.orbits)} clicked orbits over a {explorer.survey_message}"
+    )
     return 0
 
 
@@ -113,22 +122,37 @@ def main(argv: list[str] | None = None) -> int:
         "explore",
         help="an interactive section explorer: click on the section to start an orbit, sliders for the parameters",
     )
-    explore.add_argument("--scene", choices=("circle", "walls2d", "walls3d"), default="circle",
-                         help="StickInCircle (default), StickBetweenWalls2D or StickBetweenWalls3D")
+    explore.add_argument(
+        "--scene",
+        choices=("circle", "walls2d", "walls3d"),
+        default="circle",
+        help="StickInCircle (default), StickBetweenWalls2D or StickBetweenWalls3D",
+    )
     explore.add_argument("--R", type=float, default=2.0, help="circle radius (default 2)")
     explore.add_argument("--h", type=float, default=3.0, help="distance between the walls (default 3)")
-    explore.add_argument("--ell", type=float, default=None,
-                         help="stick half-length (default 1.2 in the circle, 1 between walls)")
-    explore.add_argument("--inertia", type=float, default=None,
-                         help="moment of inertia (default mass ell^2; inf: the static lens)")
+    explore.add_argument(
+        "--ell", type=float, default=None, help="stick half-length (default 1.2 in the circle, 1 between walls)"
+    )
+    explore.add_argument(
+        "--inertia", type=float, default=None, help="moment of inertia (default mass ell^2; inf: the static lens)"
+    )
     explore.add_argument("--energy", type=float, default=None, help="the section's energy E (E' for walls; 0.5)")
     explore.add_argument("--L", type=float, default=None, help="the circle's angular momentum L (default 0)")
     explore.add_argument("--spin", type=float, default=None, help="walls3d: I w_z (default 0.6 sqrt(I))")
-    explore.add_argument("--save", metavar="PATH", default=None,
-                         help="no window: seed the survey, click a few points, save a PNG to PATH")
+    explore.add_argument(
+        "--save",
+        metavar="PATH",
+        default=None,
+        help="no window: seed the survey, click a few points, save a PNG to PATH",
+    )
     explore.add_argument("--clicks", type=int, default=4, help="with --save: sample points to click (default 4)")
-    explore.add_argument("--click", type=_parse_point, action="append", metavar="X,Y",
-                         help="with --save: click this section point (repeatable; replaces --clicks)")
+    explore.add_argument(
+        "--click",
+        type=_parse_point,
+        action="append",
+        metavar="X,Y",
+        help="with --save: click this section point (repeatable; replaces --clicks)",
+    )
     explore.set_defaults(run=_explore)
     args = parser.parse_args(argv)
     if args.command is None:

@@ -114,8 +114,7 @@ def draw_trajectory(
     if wall_at is not None and n:
         j = wall_at % n
         lens = lens_outline(scene, float(states[j, 2]))
-        ax.plot(lens[:, 0], lens[:, 1], "--", color=wall_color, lw=1.2,
-                label=f"rotating wall at contact {j + 1}")
+        ax.plot(lens[:, 0], lens[:, 1], "--", color=wall_color, lw=1.2, label=f"rotating wall at contact {j + 1}")
         ax.plot(ends[j, :, 0], ends[j, :, 1], color=wall_color, lw=2.5)
         ax.plot(*states[j, :2], "o", color=wall_color, ms=5)
     ax.set_aspect("equal")
@@ -183,9 +182,17 @@ def draw_section(
         else:
             x, y = orbit_points[:, 0], orbit_points[:, 1]
         ok = np.isfinite(x) & np.isfinite(y)
-        ax.plot(x[ok], y[ok], linestyle="none", marker=".", markersize=markersize, markeredgewidth=0,
-                color=colors[i % len(colors)], rasterized=rasterized,
-                label=None if labels is None else labels[i])
+        ax.plot(
+            x[ok],
+            y[ok],
+            linestyle="none",
+            marker=".",
+            markersize=markersize,
+            markeredgewidth=0,
+            color=colors[i % len(colors)],
+            rasterized=rasterized,
+            label=None if labels is None else labels[i],
+        )
     xlabel, ylabel = _SECTION_LABELS[kind]
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
@@ -266,13 +273,20 @@ def draw_spiral_column(
     qq, aa = np.meshgrid(q, a)
     r = -ell * np.abs(np.cos(qq)) + np.sqrt(R**2 - (ell * np.sin(qq)) ** 2)
     theta = qq + aa
-    ax3d.plot_surface(r * np.cos(theta), r * np.sin(theta), pitch * aa, color="tab:gray",
-                      alpha=surface_alpha, linewidth=0, antialiased=False, shade=True)
+    ax3d.plot_surface(
+        r * np.cos(theta),
+        r * np.sin(theta),
+        pitch * aa,
+        color="tab:gray",
+        alpha=surface_alpha,
+        linewidth=0,
+        antialiased=False,
+        shade=True,
+    )
     crease = np.sqrt(R**2 - ell**2)
     a_fine = np.linspace(alphas.min(), alphas.max(), 600)
     for side in (0.5 * np.pi, -0.5 * np.pi):
-        ax3d.plot(crease * np.cos(a_fine + side), crease * np.sin(a_fine + side), pitch * a_fine,
-                  color="k", lw=0.8)
+        ax3d.plot(crease * np.cos(a_fine + side), crease * np.sin(a_fine + side), pitch * a_fine, color="k", lw=0.8)
     ax3d.plot(path[:, 0], path[:, 1], z, color=path_color, lw=1.0)
     ax3d.scatter(path[1:, 0], path[1:, 1], z[1:], color=path_color, s=4)
     ax3d.set_xlabel("x (length)")
@@ -329,8 +343,17 @@ _FLOOR_SECTION_LABELS = {
 _FLOOR_P_LABEL = r"$p = (I\dot\theta + M v_z\, dz/d\theta)/\sqrt{2 I E'}$"
 
 
-def draw_walls_2d(ax, scene, state0, orbit, *, collisions: int | None = None, stick_every: int = 1,
-                  path_color: str = "tab:blue", stick_color: str = "0.45"):
+def draw_walls_2d(
+    ax,
+    scene,
+    state0,
+    orbit,
+    *,
+    collisions: int | None = None,
+    stick_every: int = 1,
+    path_color: str = "tab:blue",
+    stick_color: str = "0.45",
+):
     """The 2D stick between the floor ``z = 0`` and the ceiling ``z = h``: centre path and stick at contacts.
 
     Args:
@@ -363,7 +386,7 @@ def draw_walls_2d(ax, scene, state0, orbit, *, collisions: int | None = None, st
                 ax.plot(*ends[j, k], ".", color="tab:green", ms=5)
     lo = min(path[:, 0].min(), ends[..., 0].min()) - 0.2 * ell
     hi = max(path[:, 0].max(), ends[..., 0].max()) + 0.2 * ell
-    for level, name in ((0.0, "floor"), (h, "ceiling")):
+    for level in (0.0, h):
         ax.plot([lo, hi], [level, level], color="k", lw=1.5)
     ax.set_xlim(lo, hi)
     ax.set_ylim(-0.08 * h, 1.08 * h)
@@ -402,8 +425,19 @@ def draw_wall_billiard(ax, scene, theta_range=(0.0, np.pi), *, color="k", shade:
     return ax
 
 
-def draw_wall_flights(ax, scene, state0, orbit, *, collisions: int | None = None, points_per_flight: int = 60,
-                      color: str = "tab:blue", walls: bool = True, margin: float = 0.15, label=None):
+def draw_wall_flights(
+    ax,
+    scene,
+    state0,
+    orbit,
+    *,
+    collisions: int | None = None,
+    points_per_flight: int = 60,
+    color: str = "tab:blue",
+    walls: bool = True,
+    margin: float = 0.15,
+    label=None,
+):
     """An orbit's flights in the ``(kappa theta, z)`` plane, with the walls.
 
     2D: ``theta`` unwrapped along the orbit, straight lines. 3D: ``theta`` the
@@ -437,8 +471,17 @@ def draw_wall_flights(ax, scene, state0, orbit, *, collisions: int | None = None
     return ax
 
 
-def draw_floor_section(ax, points, kind: str = "2d", *, colors=None, markersize: float = 0.6, labels=None,
-                       title: str | None = None, rasterized: bool = True):
+def draw_floor_section(
+    ax,
+    points,
+    kind: str = "2d",
+    *,
+    colors=None,
+    markersize: float = 0.6,
+    labels=None,
+    title: str | None = None,
+    rasterized: bool = True,
+):
     """Floor-section points ``(..., 2) = [theta, p]`` of one or many orbits (NaN skipped), ``theta`` across.
 
     ``kind``: ``"2d"`` (``floor_section``: ``theta mod pi``) or ``"3d"``
@@ -450,9 +493,17 @@ def draw_floor_section(ax, points, kind: str = "2d", *, colors=None, markersize:
     pts, colors = _orbits_and_colors(points, colors)
     for i, orbit_points in enumerate(pts):
         ok = np.all(np.isfinite(orbit_points), axis=-1)
-        ax.plot(orbit_points[ok, 0], orbit_points[ok, 1], linestyle="none", marker=".", markersize=markersize,
-                markeredgewidth=0, color=colors[i % len(colors)], rasterized=rasterized,
-                label=None if labels is None else labels[i])
+        ax.plot(
+            orbit_points[ok, 0],
+            orbit_points[ok, 1],
+            linestyle="none",
+            marker=".",
+            markersize=markersize,
+            markeredgewidth=0,
+            color=colors[i % len(colors)],
+            rasterized=rasterized,
+            label=None if labels is None else labels[i],
+        )
     ax.set_xlabel(_FLOOR_SECTION_LABELS[kind])
     ax.set_ylabel(_FLOOR_P_LABEL)
     ax.set_xlim(0.0, np.pi)
@@ -516,8 +567,16 @@ def plot_fli_map(
     extent = tuple(float(e) for e in extent)
     if len(extent) != 4:
         raise ValueError(f"extent must be (x_min, x_max, y_min, y_max); got {extent}")
-    shown = ax.imshow(np.ma.masked_invalid(image), origin="lower", extent=extent, aspect="auto",
-                      cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    shown = ax.imshow(
+        np.ma.masked_invalid(image),
+        origin="lower",
+        extent=extent,
+        aspect="auto",
+        cmap=cmap,
+        vmin=vmin,
+        vmax=vmax,
+        interpolation="nearest",
+    )
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if title is not None:

@@ -108,8 +108,9 @@ def test_other_end_hitting_within_the_first_step_after_a_bounce():
     """Lens near a corner: P2 bounces, P1 hits 0.0025 later, inside the first
     solver step of the new flight, while P2's wall function starts at zero."""
     scene = jb.StickInCircle(R=2.0, ell=1.5, inertia=math.inf)
-    state0 = jnp.array([0.017720005343110773, 0.37639746740062185, -0.7172319232442583,
-                        1.2822321449371856, 0.9374222901685278, 0.0])
+    state0 = jnp.array(
+        [0.017720005343110773, 0.37639746740062185, -0.7172319232442583, 1.2822321449371856, 0.9374222901685278, 0.0]
+    )
     result = check(scene, state0, 3, tol=TOL)
     assert result.report.trusted and result.report.agree, str(result.report)
     assert result.contact.tolist() == [-1, 1, -1]

@@ -47,8 +47,17 @@ def start_states(scene, count, seed=7):
         radius, angle = 0.3 * np.sqrt(rng.uniform(size=count)), rng.uniform(-np.pi, np.pi, count)
         v = rng.normal(size=(count, 2))
         omega = 0.0 if scene.kind != "rotor" else rng.normal(size=count)
-        s = np.stack([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-np.pi, np.pi, count),
-                      v[:, 0], v[:, 1], np.broadcast_to(omega, (count,))], axis=1)
+        s = np.stack(
+            [
+                radius * np.cos(angle),
+                radius * np.sin(angle),
+                rng.uniform(-np.pi, np.pi, count),
+                v[:, 0],
+                v[:, 1],
+                np.broadcast_to(omega, (count,)),
+            ],
+            axis=1,
+        )
         return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
     if scene.state_size == 6:
         z = rng.uniform(1.2, 1.8, count)
@@ -106,8 +115,9 @@ def test_collision_by_collision_from_identical_states(case):
 
 def _lane_root_steps(scene, state):
     lane = _step.begin_flight(scene, state, scene.orbit_constants(state))
-    lane = jax.lax.while_loop(lambda l: ~l.found & (l.steps < _step.MAX_ROOT_STEPS),
-                              lambda l: _step.search_step(scene, l), lane)
+    lane = jax.lax.while_loop(
+        lambda l: ~l.found & (l.steps < _step.MAX_ROOT_STEPS), lambda l: _step.search_step(scene, l), lane
+    )
     return lane.t, lane.index, lane.steps
 
 
@@ -265,8 +275,11 @@ def test_pallas_lane_out_of_root_steps_is_poisoned(monkeypatch):
 def test_pallas_kernel_lowers_for_cuda_without_a_gpu(name):
     scene = scenes()[name]
     states = jnp.zeros((64, scene.state_size))
-    lowered = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 10)).trace(
-        states, _lanes.fresh_carry(scene, states)).lower(lowering_platforms=("cuda",))
+    lowered = (
+        jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 10))
+        .trace(states, _lanes.fresh_carry(scene, states))
+        .lower(lowering_platforms=("cuda",))
+    )
     assert "triton" in lowered.as_text().lower() or "__gpu$xla$gpu$triton" in lowered.as_text()
 
 
@@ -275,7 +288,8 @@ def _fli_starting_vectors(scene, states):
     from jaxbill._tangent import to_state_space
 
     return jax.vmap(lambda s: to_state_space(scene, s, _initial_vector(scene, s, None, "collision")[:, None])[:, 0])(
-        jnp.asarray(states))
+        jnp.asarray(states)
+    )
 
 
 @pytest.mark.parametrize("name", ["rotor 1.0", "lens", "walls 2D", "ellipse", "ellipse point"])
@@ -286,7 +300,8 @@ def test_pallas_kernel_carries_the_tangent_as_jb_fli(name):
     states = jnp.asarray(start_states(scene, 32, seed=5))
     n = 12
     fli, log_norm, final = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, n, interpret=True))(
-        states, _fli_starting_vectors(scene, states))
+        states, _fli_starting_vectors(scene, states)
+    )
     expected = jb.fli(scene, states, n)
     np.testing.assert_allclose(np.asarray(fli), np.asarray(expected.value), rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(np.asarray(log_norm), np.asarray(expected.log_norm), rtol=1e-9, atol=1e-9)
@@ -296,8 +311,11 @@ def test_pallas_kernel_carries_the_tangent_as_jb_fli(name):
 def test_pallas_tangent_kernel_lowers_for_cuda():
     scene = jb.StickInCircle(R=2.0, ell=1.9)
     states = jnp.zeros((64, 6))
-    lowered = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, 10)).trace(states, states).lower(
-        lowering_platforms=("cuda",))
+    lowered = (
+        jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, 10))
+        .trace(states, states)
+        .lower(lowering_platforms=("cuda",))
+    )
     assert "triton" in lowered.as_text().lower()
 
 

@@ -138,8 +138,9 @@ def test_equal_axes_give_the_circle_sections():
     stick_start = jnp.array([0.2, -0.3, 0.4, 0.8, 0.5, 1.3])
     ellipse, circle = jb.StickInEllipse(a=R, b=R, ell=0.9), jb.StickInCircle(R=R, ell=0.9)
     orb = jb.orbit(circle, stick_start, 30)
-    np.testing.assert_allclose(ellipse.section(orb.state, orb.contact)[:, 1],
-                               jb.reduced_section(circle, orb.state)[:, 1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        ellipse.section(orb.state, orb.contact)[:, 1], jb.reduced_section(circle, orb.state)[:, 1], rtol=0, atol=1e-12
+    )
 
 
 def test_section_state_round_trips():
@@ -230,7 +231,7 @@ def test_no_import_cycles_in_the_package():
         if state.get(module) == "done":
             return
         if state.get(module) == "open":
-            raise AssertionError("import cycle: " + " -> ".join(trail[trail.index(module):] + [module]))
+            raise AssertionError("import cycle: " + " -> ".join(trail[trail.index(module) :] + [module]))
         state[module] = "open"
         for imported in sorted(graph[module]):
             visit(imported, trail + [module])

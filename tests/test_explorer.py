@@ -18,15 +18,15 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-from matplotlib.backend_bases import MouseButton, MouseEvent  # noqa: E402
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from matplotlib.backend_bases import MouseButton, MouseEvent
 
-import jaxbill as jb  # noqa: E402
-from jaxbill import _explorer  # noqa: E402
-from jaxbill._sections import CIRCLE_CHART  # noqa: E402
-from jaxbill._wall_charts import WALLS_2D_CHART  # noqa: E402
+import jaxbill as jb
+from jaxbill import _explorer
+from jaxbill._sections import CIRCLE_CHART
+from jaxbill._wall_charts import WALLS_2D_CHART
 
 SMALL = dict(survey_orbits=8, survey_collisions=200, click_collisions=400, chunk=100)
 
@@ -87,8 +87,9 @@ def test_a_click_starts_an_orbit_at_that_section_point(explorer):
     assert clicked.points.shape == (SMALL["click_collisions"] + 1, 2)
     # The orbit is jb.orbit's from the chart's start state: its first section points agree within the
     # chaos horizon (the explorer runs it in a batch, which may round differently in the last bit).
-    states, contacts = explorer.chart.start(explorer.scene, jnp.float64(event.xdata), jnp.float64(event.ydata),
-                                            explorer.invariants)
+    states, contacts = explorer.chart.start(
+        explorer.scene, jnp.float64(event.xdata), jnp.float64(event.ydata), explorer.invariants
+    )
     np.testing.assert_array_equal(clicked.state0, np.asarray(states))
     orb = jb.orbit(explorer.scene, states, 10)
     expected = np.asarray(explorer.chart.points(explorer.scene, orb.state, orb.contact))
@@ -166,12 +167,13 @@ def test_a_slider_press_rebuilds_the_scene_and_its_survey(rotor_explorer):
     assert f"ell = {new_ell:.4g}" in explorer.section_axes.get_title()
     # The survey is the new scene's: seeds spread over its section, then its orbits.
     seeds = jb.section_seeds(explorer.scene, SMALL["survey_orbits"], 0.5, 0.0)
-    np.testing.assert_allclose(explorer.survey_points[:, 0], np.asarray(jb.reduced_section(explorer.scene, seeds)),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        explorer.survey_points[:, 0], np.asarray(jb.reduced_section(explorer.scene, seeds)), rtol=0, atol=1e-12
+    )
     orb = jb.orbit(explorer.scene, seeds, 5)
-    np.testing.assert_allclose(explorer.survey_points[:, 1:6], np.asarray(jb.reduced_section(explorer.scene,
-                                                                                             orb.state)),
-                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        explorer.survey_points[:, 1:6], np.asarray(jb.reduced_section(explorer.scene, orb.state)), rtol=0, atol=1e-9
+    )
     assert not np.allclose(explorer.survey_points, old_survey, equal_nan=True)
     # The clicked orbit was rerun from the same section point in the new scene.
     assert len(explorer.orbits) == 1
@@ -231,8 +233,13 @@ def test_a_scene_can_bring_its_own_chart():
 def test_jaxbill_explore_save_writes_a_screenshot(tmp_path):
     target = tmp_path / "explorer.png"
     env = dict(os.environ, JAX_PLATFORMS="cpu")
-    proc = subprocess.run([sys.executable, "-m", "jaxbill.cli", "explore", "--save", str(target), "--clicks", "2"],
-                          capture_output=True, text=True, env=env, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "jaxbill.cli", "explore", "--save", str(target), "--clicks", "2"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert proc.stdout.count("4000 collisions") == 2, proc.stdout
@@ -241,7 +248,12 @@ def test_jaxbill_explore_save_writes_a_screenshot(tmp_path):
 
 def test_jaxbill_explore_bad_ell_exits_2_naming_it(tmp_path):
     env = dict(os.environ, JAX_PLATFORMS="cpu")
-    proc = subprocess.run([sys.executable, "-m", "jaxbill.cli", "explore", "--ell", "2.5", "--save",
-                           str(tmp_path / "x.png")], capture_output=True, text=True, env=env, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "jaxbill.cli", "explore", "--ell", "2.5", "--save", str(tmp_path / "x.png")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert proc.returncode == 2
     assert "ell" in proc.stderr and "Traceback" not in proc.stderr

@@ -203,8 +203,10 @@ def test_vmapped_and_batched_results_equal_single_ones():
 def test_fli_map_has_the_grid_shape_and_separates_regular_from_chaotic():
     n = 300
     grid = np.array(
-        [[LENS_REGULAR, LENS_CHAOTIC, [0.0, 0.0, 0.0, 1.0, 0.0, 0.0]],
-         [LENS_CHAOTIC, [5.0, 0.0, 0.0, 1.0, 0.0, 0.0], [np.nan] * 6]]
+        [
+            [LENS_REGULAR, LENS_CHAOTIC, [0.0, 0.0, 0.0, 1.0, 0.0, 0.0]],
+            [LENS_CHAOTIC, [5.0, 0.0, 0.0, 1.0, 0.0, 0.0], [np.nan] * 6],
+        ]
     )
     fli_map = jb.fli_map(LENS, grid, n, chunk=3)
     assert fli_map.shape == (2, 3)
