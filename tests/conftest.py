@@ -14,3 +14,20 @@ import jaxbill
 import shape_checks
 
 UNRESOLVED_ANNOTATIONS = shape_checks.install(jaxbill)
+
+
+import jax  # noqa: E402
+import pytest  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop JAX's compiled programs after each test module.
+
+    The suite compiles thousands of programs in one process; kept, they grew
+    it past 5 GB, and twice XLA crashed compiling a program late in the run
+    (a segfault inside the compiler, never seen when the same module ran
+    alone). Modules share almost no programs, so little is compiled twice.
+    """
+    yield
+    jax.clear_caches()
