@@ -223,6 +223,39 @@ def end_sign(gap: jax.Array) -> jax.Array:
     return jnp.where((gap == 0) | (gap == 2), 1.0, -1.0)
 
 
+class WallsEngine:
+    """The engine's questions (``jaxbill._step``), the same for the stick between walls in 2D and 3D.
+
+    The scene provides ``kind``, ``vertical_profile``, ``end_gaps``,
+    ``end_approach_speeds`` and ``kick`` on components, and ``moved(state, t)``:
+    the free flight to ``t`` (renormalised where the state has constraints).
+    """
+
+    kind: str  # declared for type checkers; the scene's own (static) field
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """A turning stick's end heights are sinusoids; a static one's are lines (closed form)."""
+        return self.kind == "rotor"
+
+    def root_search(self, state: tuple):
+        """``(vertical profile, RootBounds)`` of the flight from ``state``."""
+        profile = self.vertical_profile(state)  # type: ignore[attr-defined]
+        return profile, search_bounds(profile)
+
+    def gaps_along_flight(self, profile, t: jax.Array):
+        """The four gaps and their time derivatives after a flight of ``t`` (4-tuples)."""
+        return gaps_along_flight(profile, t)
+
+    def closed_form_contact(self, state: tuple, constants: None = None):
+        """``(t, index)`` for a stick that never turns: every gap is linear in time."""
+        return straight_contact_time(self.end_gaps(state), self.end_approach_speeds(state))  # type: ignore[attr-defined]
+
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: None = None):
+        """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``resolve_contact``)."""
+        return resolve_contact(self, self.moved(state, t), index)  # type: ignore[attr-defined]
+
+
 def state_is_inside(scene, state) -> jax.Array:
     """No end through a wall by more than the tolerance, none on a wall and not moving away from it."""
     gaps = scene.gaps(state)

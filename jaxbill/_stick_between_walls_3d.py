@@ -43,7 +43,7 @@ from ._walls_sections import floor_state, reduced_wall_section
 UNIT_TOLERANCE = 1e-10
 
 
-class StickBetweenWalls3D(eqx.Module):
+class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
     """A stick of half-length ``ell`` bouncing between the planes ``z = 0`` and ``z = h``.
 
     Args:
@@ -126,27 +126,9 @@ class StickBetweenWalls3D(eqx.Module):
     # States are components (x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz);
     # results are tuples.
 
-    @property
-    def searches_for_roots(self) -> bool:
-        """A turning stick's end heights are sinusoids; a static one's are lines (closed form)."""
-        return self.kind == "rotor"
-
-    def root_search(self, state: tuple):
-        """``(vertical profile, RootBounds)`` of the flight from ``state``."""
-        profile = self.vertical_profile(state)
-        return profile, walls.search_bounds(profile)
-
-    def gaps_along_flight(self, profile, t: jax.Array):
-        """The four gaps and their time derivatives after a flight of ``t`` (4-tuples)."""
-        return walls.gaps_along_flight(profile, t)
-
-    def closed_form_contact(self, state: tuple, constants: None = None):
-        """``(t, index)`` for a stick that never turns: every gap is linear in time."""
-        return walls.straight_contact_time(self.end_gaps(state), self.end_approach_speeds(state))
-
-    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: None = None):
-        """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``jaxbill._flat_walls``)."""
-        return walls.resolve_contact(self, self._renormalised(self._flight(state, t)), index)
+    def moved(self, state: tuple, t) -> tuple:
+        """The free flight of the components for time ``t``, ``u`` and ``w`` renormalised."""
+        return self._renormalised(self._flight(state, t))
 
     def end_gaps(self, state: tuple) -> tuple:
         """``(z1, z2, h - z1, h - z2)`` of the components."""
