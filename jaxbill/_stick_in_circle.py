@@ -13,6 +13,7 @@ and ``P2 = c - ell u`` (contact ``-1``), ``u = (cos alpha, sin alpha)``.
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import ClassVar
 
 import equinox as eqx
@@ -20,12 +21,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _two_ended_stick as stick
 from ._chaos import circle_shell_candidates
 from ._checker import ColumnFlight
-from ._first_root import RootBounds, first_smallest, select
-from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, SectionChart, chosen_section, component
+from ._first_root import RootBounds, first_smallest
+from ._scene import WALL_TOLERANCE, SectionChart, chosen_section, component
 from ._sections import CIRCLE_CHART, birkhoff_section, paper_section, reduced_section, section_state
-from ._step import components, stacked, where
+from ._step import components, stacked
 from ._validation import (
     broadcast_parameters,
     check_parameter,
@@ -35,10 +37,6 @@ from ._validation import (
     real_parameter,
     require_x64,
 )
-
-# A second end within this many ulps of R^2 of the wall at a contact touches it
-# at the same instant (a lens corner): both impulses are applied in one event.
-_CORNER_ULPS = 64.0
 
 # Orbits of a batch run in chunks of this many lanes, one chunk after another:
 # a vmapped root search waits for its slowest lane, so smaller chunks wait less,
@@ -199,7 +197,7 @@ class StickInCircle(eqx.Module):
 
     def orbit_constants(self, state0: tuple):
         """The static lens never turns: its direction ``(ux, uy)`` serves a whole orbit (``state0``: components)."""
-        return _direction(self.kind, state0[2]) if self.kind == "lens" else None
+        return stick.direction(self.kind == "circle", state0[2]) if self.kind == "lens" else None
 
     # -- the engine's questions (see jaxbill._step) -----------------------------
     # States are components (x, y, alpha, vx, vy, omega): scalars, or arrays of
@@ -239,32 +237,20 @@ class StickInCircle(eqx.Module):
 
     def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, lens_direction):
         """The flight to ``t`` and the impulse(s) of end ``index`` (0: P1, 1: P2) touching the wall."""
-        moved = _flight(self.kind, state, t)
+        moved = stick.flight(self.kind != "lens", state, t)
         if self.kind == "lens":
             u = lens_direction  # the lens never turns: one u serves the whole orbit
         else:
-            u = _direction(self.kind, moved[2])
+            u = stick.direction(self.kind == "circle", moved[2])
         if self.kind == "circle":
             return self.kick(moved, 0.0, u), jnp.ones(jnp.shape(t), jnp.int32)
         return self._resolve_contact(moved, index, u)
 
     def _resolve_contact(self, state: tuple, index: jax.Array, u: tuple):
-        """Apply the impulse at the touching end; a simultaneous second contact too."""
-        gaps = _end_gaps(self, state, u)
-        speeds = _end_approach_speeds(self, state, u)
-        other = 1 - index
-        gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
-        corner = (gap_other <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.R**2) & (speed_other > 0.0)
-        # At a corner the faster-approaching end is kicked first, the other after
-        # it if it still approaches: a deterministic rule for an ill-posed event.
-        first = jnp.where(corner & (speed_other > speed_index), other, index)
-        second = 1 - first
-        sign = (1.0, -1.0)  # end P1, end P2
-        kicked = self.kick(state, select(sign, first), u)
-        still_approaching = select(_end_approach_speeds(self, kicked, u), second) > 0.0
-        kicked = where(corner & still_approaching, self.kick(kicked, select(sign, second), u), kicked)
-        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
-        return kicked, contact
+        """Apply the impulse at the touching end; a simultaneous second contact too (a lens corner)."""
+        return stick.resolve_two_ends(
+            self.kick, partial(_end_gaps, self), partial(_end_approach_speeds, self), state, index, u, self.R**2
+        )
 
     # -- derived quantities --------------------------------------------------
 
@@ -285,7 +271,7 @@ class StickInCircle(eqx.Module):
         every collision (float64 sin/cos dominate the lens's cost), and the
         circle (``ell = 0``) never needs it.
         """
-        return jnp.stack(_direction(self.kind, state[..., 2]), axis=-1)
+        return jnp.stack(stick.direction(self.kind == "circle", state[..., 2]), axis=-1)
 
     def end_points(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
@@ -306,7 +292,7 @@ class StickInCircle(eqx.Module):
         long the run: an unwrapped angle of ``1e7`` radians would carry ``1e-9``
         absolute error into every contact.
         """
-        return stacked(_flight(self.kind, components(state), t))
+        return stacked(stick.flight(self.kind != "lens", components(state), t))
 
     def approach_speeds(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Normal velocity of each end towards the wall, ``v . n + omega s_k``, shape ``(..., 2)``."""
@@ -367,7 +353,7 @@ class StickInCircle(eqx.Module):
         e = 0.5 * self.mass * (vx**2 + vy**2)
         if self.kind == "lens":
             return e
-        return e + _spin_term(self.kind, omega, 0.5 * self.inertia * omega**2)
+        return e + stick.spin_term(self.kind == "circle", omega, 0.5 * self.inertia * omega**2)
 
     def angular_momentum(self, state: jax.Array) -> jax.Array:
         """Total angular momentum about the origin, ``M (x vy - y vx) + I omega``.
@@ -380,7 +366,7 @@ class StickInCircle(eqx.Module):
         orbital = self.mass * (x * vy - y * vx)
         if self.kind == "lens":
             return orbital
-        return orbital + _spin_term(self.kind, state[..., 5], self.inertia * state[..., 5])
+        return orbital + stick.spin_term(self.kind == "circle", state[..., 5], self.inertia * state[..., 5])
 
     # == analysis (tangent maps, Lyapunov spectra: jaxbill._tangent) =====================
     # Added for the analysis modules; the engine above does not use these.
@@ -448,26 +434,6 @@ class StickInCircle(eqx.Module):
         return circle_shell_candidates(self, rng, count, energy, angular_momentum, margin)
 
     # == end of analysis block ============================================================
-
-
-def _spin_term(kind, omega, term):
-    """``term`` (``I omega^2 / 2`` or ``I omega``); for the circle 0 where ``omega = 0`` (``I = inf``: not NaN)."""
-    return jnp.where(omega == 0.0, 0.0, term) if kind == "circle" else term
-
-
-def _direction(kind: str, alpha):
-    """``(cos alpha, sin alpha)``; the circle (``ell = 0``) never needs it."""
-    if kind == "circle":
-        return jnp.ones_like(alpha), jnp.zeros_like(alpha)
-    return jnp.cos(alpha), jnp.sin(alpha)
-
-
-def _flight(kind: str, state: tuple, t) -> tuple:
-    """Free flight of the components for time ``t``; ``alpha`` wrapped into ``[-pi, pi)`` (see ``flight``)."""
-    x, y, alpha, vx, vy, omega = state
-    if kind != "lens":  # the lens never turns (omega = 0)
-        alpha = jnp.remainder(alpha + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
-    return x + vx * t, y + vy * t, alpha, vx, vy, omega
 
 
 def _end_gaps(scene: StickInCircle, state: tuple, u: tuple) -> tuple:

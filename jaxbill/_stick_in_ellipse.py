@@ -53,13 +53,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _two_ended_stick as stick
 from ._chaos import table_shell_candidates
 from ._checker import ColumnFlight
 from ._ellipse_sections import ELLIPSE_CHART, SECTIONS, ellipse_section, ellipse_section_state
-from ._first_root import RootBounds, first_smallest, select
-from ._scene import SEVERAL_CONTACTS, WALL_TOLERANCE, SectionChart, chosen_section, component
+from ._first_root import RootBounds, first_smallest
+from ._scene import WALL_TOLERANCE, SectionChart, chosen_section, component
 from ._smooth_table import EllipseTable
-from ._step import components, searched_contact_time, stacked, where
+from ._step import components, searched_contact_time, stacked
 from ._validation import (
     broadcast_parameters,
     check_parameter,
@@ -69,13 +70,6 @@ from ._validation import (
     real_parameter,
     require_x64,
 )
-
-_ENDS = (1.0, -1.0)  # contact index 0 -> end P1 (+1), index 1 -> end P2 (-1)
-
-# A second end within this many ulps of ``ab`` of the wall at a contact touches
-# it at the same instant (a corner of the static stick's region): both impulses
-# are applied in one event.
-_CORNER_ULPS = 64.0
 
 # Lanes per chunk of a batch run: a vmapped root search waits for its slowest lane.
 _BATCH_CHUNK = {"rotor": 64, "static": 256, "point": 256}
@@ -251,7 +245,7 @@ class StickInEllipse(eqx.Module):
 
     def orbit_constants(self, state0: tuple):
         """A stick that never turns keeps its direction ``(ux, uy)`` for a whole orbit (``state0``: components)."""
-        return _direction(self.kind, state0[2]) if self.kind == "static" else None
+        return stick.direction(self.kind == "point", state0[2]) if self.kind == "static" else None
 
     # -- the engine's questions (jaxbill._step) ----------------------------------
     # States are components (x, y, alpha, vx, vy, omega): scalars, or arrays of
@@ -298,8 +292,8 @@ class StickInEllipse(eqx.Module):
 
     def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, static_direction):
         """The flight to ``t`` and the impulse(s) of end ``index`` (0: P1, 1: P2): ``(state, contact)``."""
-        moved = _flight(self.kind, state, t)
-        u = static_direction if self.kind == "static" else _direction(self.kind, moved[2])
+        moved = stick.flight(self.kind != "static", state, t)
+        u = static_direction if self.kind == "static" else stick.direction(self.kind == "point", moved[2])
         return self._resolve(moved, index, u)
 
     def root_search_setup(self, state: tuple):
@@ -339,32 +333,21 @@ class StickInEllipse(eqx.Module):
         one first and the other only if it still approaches, and the contact is 2.
         """
         parts = components(state)
-        new, contact = self._resolve(parts, index, _direction(self.kind, parts[2]))
+        new, contact = self._resolve(parts, index, stick.direction(self.kind == "point", parts[2]))
         return stacked(new), contact
 
     def _resolve(self, state: tuple, index, u: tuple):
         if self.kind == "point":
             return self.kick(state, 0.0, u), jnp.ones(jnp.shape(index), jnp.int32)
-        gaps = self._end_gaps(state, u)
-        speeds = self._end_approach_speeds(state, u)
-        other = 1 - index
-        gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
-        corner = (gap_other <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * self.gap_scale) & (speed_other > 0.0)
-        # A deterministic rule for an ill-posed event: the faster-approaching
-        # end first, the other after it if it still approaches.
-        first = jnp.where(corner & (speed_other > speed_index), other, index)
-        second = 1 - first
-        kicked = self.kick(state, select(_ENDS, first), u)
-        still_approaching = select(self._end_approach_speeds(kicked, u), second) > 0.0
-        kicked = where(corner & still_approaching, self.kick(kicked, select(_ENDS, second), u), kicked)
-        contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
-        return kicked, contact
+        return stick.resolve_two_ends(
+            self.kick, self._end_gaps, self._end_approach_speeds, state, index, u, self.gap_scale
+        )
 
     def _end_gaps(self, state: tuple, u: tuple) -> tuple:
         x, y = state[0], state[1]
         ux, uy = u
         table = EllipseTable(self.a, self.b)
-        return tuple(table.gap_at(x + sign * self.ell * ux, y + sign * self.ell * uy) for sign in _ENDS)
+        return tuple(table.gap_at(x + sign * self.ell * ux, y + sign * self.ell * uy) for sign in stick.END_SIGNS)
 
     def _end_approach_speeds(self, state: tuple, u: tuple) -> tuple:
         """Velocity of each end along the wall's outward unit normal there; > 0 approaching."""
@@ -372,7 +355,7 @@ class StickInEllipse(eqx.Module):
         ux, uy = u
         table = EllipseTable(self.a, self.b)
         speeds = []
-        for sign in _ENDS:
+        for sign in stick.END_SIGNS:
             arm = sign * self.ell
             nx, ny = table.normal_at(x + arm * ux, y + arm * uy)
             ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
@@ -390,7 +373,7 @@ class StickInEllipse(eqx.Module):
 
     def direction(self, state: jax.Array) -> jax.Array:
         """The stick's unit vector ``u = (cos alpha, sin alpha)``, shape ``(..., 2)`` (``(1, 0)`` for a point)."""
-        return jnp.stack(_direction(self.kind, state[..., 2]), axis=-1)
+        return jnp.stack(stick.direction(self.kind == "point", state[..., 2]), axis=-1)
 
     def end_points(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Ends ``[P1, P2]``, shape ``(..., 2, 2)``."""
@@ -406,7 +389,7 @@ class StickInEllipse(eqx.Module):
 
     def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
         """Free flight for time ``t``; ``alpha`` wrapped into ``[-pi, pi)`` (see ``StickInCircle.flight``)."""
-        return stacked(_flight(self.kind, components(state), t))
+        return stacked(stick.flight(self.kind != "static", components(state), t))
 
     def approach_speeds(self, state: jax.Array, u: jax.Array | None = None) -> jax.Array:
         """Velocity of each end along the wall's outward unit normal there, shape ``(..., 2)``; > 0 approaching."""
@@ -457,7 +440,7 @@ class StickInEllipse(eqx.Module):
         e = 0.5 * self.mass * (vx**2 + vy**2)
         if self.kind == "static":
             return e
-        return e + _spin_term(self.kind, omega, 0.5 * self.inertia * omega**2)
+        return e + stick.spin_term(self.kind == "point", omega, 0.5 * self.inertia * omega**2)
 
     def angular_momentum(self, state: jax.Array) -> jax.Array:
         """Angular momentum about the table's centre, ``M (x vy - y vx) + I omega``, shape ``(...)``.
@@ -470,7 +453,7 @@ class StickInEllipse(eqx.Module):
         orbital = self.mass * (x * vy - y * vx)
         if self.kind == "static":
             return orbital
-        return orbital + _spin_term(self.kind, state[..., 5], self.inertia * state[..., 5])
+        return orbital + stick.spin_term(self.kind == "point", state[..., 5], self.inertia * state[..., 5])
 
     @property
     def foci(self) -> jax.Array:
@@ -567,23 +550,3 @@ class StickInEllipse(eqx.Module):
         loops over it). No angular momentum is conserved: ``angular_momentum`` must be None."""
         box = (float(self.a), float(self.b))
         return table_shell_candidates(self, rng, count, energy, angular_momentum, margin, box=box)
-
-
-def _direction(kind: str, alpha):
-    """``(cos alpha, sin alpha)``; ``(1, 0)`` for a point, which never needs it."""
-    if kind == "point":
-        return jnp.ones_like(alpha), jnp.zeros_like(alpha)
-    return jnp.cos(alpha), jnp.sin(alpha)
-
-
-def _flight(kind: str, state: tuple, t) -> tuple:
-    """Free flight of the components for time ``t``; ``alpha`` wrapped into ``[-pi, pi)``."""
-    x, y, alpha, vx, vy, omega = state
-    if kind != "static":  # the static stick never turns (omega = 0)
-        alpha = jnp.remainder(alpha + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
-    return x + vx * t, y + vy * t, alpha, vx, vy, omega
-
-
-def _spin_term(kind, omega, term):
-    """``term``; for the point 0 where ``omega = 0`` (``inertia = inf`` must not give NaN)."""
-    return jnp.where(omega == 0.0, 0.0, term) if kind == "point" else term
