@@ -1,41 +1,50 @@
 """The XLA:CPU settings jaxbill makes at import, before JAX starts its backend.
 
-1. **Every core a device** (on by default). JAX shows one CPU device unless
-   told otherwise, and a batch split over the devices (``jb.run``,
-   ``jb.orbit``) then uses one core. jaxbill asks for one CPU device per core
-   available to the process. This changes no result: an orbit is bitwise the
-   same on any number of devices (``jaxbill._sharding``).
-2. **Small loops compiled whole** (opt-in: ``JAXBILL_COMPILE_LOOPS_WHOLE=1``).
+1. **Every core a device.** JAX shows one CPU device unless told otherwise,
+   and a batch split over the devices (``jb.run``, ``jb.orbit``) then uses
+   one core. jaxbill asks for one CPU device per core available to the
+   process. This changes no result: an orbit is bitwise the same on any
+   number of devices (``jaxbill._engine.sharding``).
+2. **Loops compiled whole, without fused multiply-adds** (x86-64).
    XLA:CPU compiles a ``while_loop`` whose carry is small into one native
    function; a larger loop runs each of its kernels as a separate call per
-   iteration. An orbit's loop carries its records, so every collision pays
-   about forty calls; raising the byte threshold
+   iteration. An orbit's loop carries its records, so every collision paid
+   about forty calls: raising the byte threshold
    (``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=...``)
-   makes one spinning-stick orbit 3-4x faster and a batch about 1.3x
-   (``benchmarks/bench_vs_numba.py``). It is not the default because LLVM then
-   optimises each whole loop in its own context and contracts multiply-adds
-   differently in different programs: ``jb.run`` and ``jb.orbit`` of the same
-   orbit, or a batch and its single orbits, then agree only to the last bit,
-   not bitwise (every reference test still passes).
+   makes one orbit 10-20x faster (``benchmarks/bench_vs_numba.py``). Whole
+   loops alone would cost bitwise reproducibility: LLVM optimises each loop
+   in its own context and contracts multiply-adds into FMAs differently in
+   different programs, so ``jb.run`` and ``jb.orbit`` of one orbit, or a
+   batch and its single orbits, would agree only to the last bit. So jaxbill
+   also caps the instruction set at AVX (``--xla_cpu_max_isa=AVX``), which
+   has no FMA: every program then rounds every operation the same way, and
+   float64 vector width is unchanged. The cost: JAX code of your own in the
+   same process runs without FMA and AVX2 too (float32 matrix products
+   slow down most). Other CPUs (ARM) have no FMA-free level to cap at, so
+   there jaxbill sets neither option.
 
 Both are process-wide and take effect only if set before the backend starts
 (the first computation, or ``jax.devices()``). jaxbill never overrides a
 choice the user made: an ``XLA_FLAGS`` that already names
-``xla_backend_extra_options``, or a device count given through
-``XLA_FLAGS`` (``xla_force_host_platform_device_count``), the
-``JAX_NUM_CPU_DEVICES`` variable or ``jax.config``, is left as it is. Import
-jaxbill after JAX has started its backend and nothing can be set: the results
-are the same, only a batch uses one core (``backend_settings()`` says what
-happened). Set ``JAXBILL_NO_XLA_SETTINGS=1`` to make no setting at all.
+``xla_backend_extra_options`` or ``xla_cpu_max_isa`` keeps setting 2 off,
+and a device count given through ``XLA_FLAGS``
+(``xla_force_host_platform_device_count``), the ``JAX_NUM_CPU_DEVICES``
+variable or ``jax.config`` is left as it is. Import jaxbill after JAX has
+started its backend and nothing can be set: the results are the same, only
+single orbits run at the old speed and a batch uses one core
+(``backend_settings()`` says what happened). ``JAXBILL_COMPILE_LOOPS_WHOLE=0``
+turns setting 2 off; ``JAXBILL_NO_XLA_SETTINGS=1`` makes no setting at all.
 """
 
 from __future__ import annotations
 
 import os
+import platform
 
 import jax
 
 SMALL_LOOP_OPTION = "xla_cpu_small_while_loop_byte_threshold=1000000000"
+NO_FMA_OPTION = "--xla_cpu_max_isa=AVX"
 
 _settings: dict[str, str] = {}
 
@@ -67,13 +76,15 @@ def configure() -> None:
         _settings.update(small_loops=late, cpu_devices=late)
         return
     flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_backend_extra_options" in flags:
+    if "xla_backend_extra_options" in flags or "xla_cpu_max_isa" in flags:
         _settings["small_loops"] = "left to the user's XLA_FLAGS"
-    elif not os.environ.get("JAXBILL_COMPILE_LOOPS_WHOLE"):
-        _settings["small_loops"] = "not set (opt in with JAXBILL_COMPILE_LOOPS_WHOLE=1)"
+    elif os.environ.get("JAXBILL_COMPILE_LOOPS_WHOLE", "1") == "0":
+        _settings["small_loops"] = "not set (JAXBILL_COMPILE_LOOPS_WHOLE=0)"
+    elif platform.machine().lower() not in ("x86_64", "amd64"):
+        _settings["small_loops"] = f"not set: {platform.machine()} has no FMA-free instruction set to cap XLA at"
     else:
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_backend_extra_options={SMALL_LOOP_OPTION}".strip()
-        _settings["small_loops"] = f"set ({SMALL_LOOP_OPTION})"
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_backend_extra_options={SMALL_LOOP_OPTION} {NO_FMA_OPTION}".strip()
+        _settings["small_loops"] = f"set ({SMALL_LOOP_OPTION}, {NO_FMA_OPTION.lstrip('-')})"
     user_chose_devices = (
         "xla_force_host_platform_device_count" in flags
         or "JAX_NUM_CPU_DEVICES" in os.environ

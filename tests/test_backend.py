@@ -1,8 +1,11 @@
-"""The XLA:CPU settings made at import: one CPU device per core, small loops whole on request,
-and never over a choice the user made (each case in a fresh interpreter: they are process-wide)."""
+"""The XLA:CPU settings made at import: one CPU device per core, loops compiled whole without FMA
+(x86-64), and never over a choice the user made (each case in a fresh interpreter: they are
+process-wide). That whole loops keep every result bitwise is what the bitwise tests of
+``jb.run`` against ``jb.orbit`` and of batches against single orbits check, in this configuration."""
 
 import json
 import os
+import platform
 import subprocess
 import sys
 
@@ -31,23 +34,32 @@ def _fresh(env_changes=None, before=""):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def test_one_cpu_device_per_core_and_no_loop_option_by_default():
+X86 = platform.machine().lower() in ("x86_64", "amd64")
+
+
+def test_one_cpu_device_per_core_and_whole_loops_without_fma_by_default():
     report = _fresh()
     assert report["devices"] == len(os.sched_getaffinity(0))
-    assert "small_while_loop" not in report["flags"]
-    assert report["settings"]["small_loops"].startswith("not set")
+    if X86:
+        assert "xla_cpu_small_while_loop_byte_threshold=1000000000" in report["flags"]
+        assert "--xla_cpu_max_isa=AVX" in report["flags"].split()
+        assert report["settings"]["small_loops"].startswith("set")
+    else:
+        assert "small_while_loop" not in report["flags"] and "max_isa" not in report["flags"]
+        assert report["settings"]["small_loops"].startswith("not set")
 
 
-def test_small_loops_on_request_and_users_choices_kept():
-    report = _fresh({"JAXBILL_COMPILE_LOOPS_WHOLE": "1"})
-    assert "xla_cpu_small_while_loop_byte_threshold=1000000000" in report["flags"]
-    users = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=7"
-    report = _fresh({"JAXBILL_COMPILE_LOOPS_WHOLE": "1", "XLA_FLAGS": users, "JAX_NUM_CPU_DEVICES": "1"})
-    assert report["flags"] == users and report["devices"] == 1
-    assert report["settings"] == {
-        "small_loops": "left to the user's XLA_FLAGS",
-        "cpu_devices": "left to the user's choice",
-    }
+def test_whole_loops_opt_out_and_users_choices_kept():
+    report = _fresh({"JAXBILL_COMPILE_LOOPS_WHOLE": "0"})
+    assert "small_while_loop" not in report["flags"] and "max_isa" not in report["flags"]
+    assert report["settings"]["small_loops"] == "not set (JAXBILL_COMPILE_LOOPS_WHOLE=0)"
+    for users in ("--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=7", "--xla_cpu_max_isa=AVX2"):
+        report = _fresh({"XLA_FLAGS": users, "JAX_NUM_CPU_DEVICES": "1"})
+        assert report["flags"] == users and report["devices"] == 1
+        assert report["settings"] == {
+            "small_loops": "left to the user's XLA_FLAGS",
+            "cpu_devices": "left to the user's choice",
+        }
 
 
 def test_too_late_when_the_backend_has_started_and_opting_out():
