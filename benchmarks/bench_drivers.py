@@ -9,8 +9,8 @@ ell = 0.5 with its static and point limits), one JAX device, a batch of
 (``jb.run(..., driver=...)``): the lockstep driver (a vmapped loop of whole
 collisions) and the lane state machine in one XLA loop, timed in alternation
 in this one process, medians. The root steps per collision come from the
-engine's own search (``jaxbill._step``), counted on the first 256 orbits.
-This is the evidence behind ``jaxbill._lanes.choose_driver``'s default on a
+engine's own search (``jaxbill._engine.step``), counted on the first 256 orbits.
+This is the evidence behind ``jaxbill._engine.lanes.choose_driver``'s default on a
 CPU. The Pallas driver is for GPUs (``bench_gpu.py``); here it would run in
 Pallas's interpreter.
 """
@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbill as jb
-from jaxbill import _step
+from jaxbill._engine import step as _step
 
 INF = float("inf")
 

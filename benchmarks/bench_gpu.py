@@ -15,7 +15,7 @@ kernel has no ellipse), for each batch size, in this one process:
 - ``jb.run(..., record="states", every=100)`` (the lanes driver: Pallas records no states);
 - ``jb.orbit`` of the batch (every state recorded; lanes driver), at the smallest size only;
 - for scale, ``jb.run(..., driver="lockstep")`` at the smallest size;
-- tangent collisions: ``jaxbill._pallas.pallas_fli`` (one tangent vector carried
+- tangent collisions: ``jaxbill._engine.pallas.pallas_fli`` (one tangent vector carried
   in the kernel, as ``jb.fli_map`` runs on a GPU), against the plain kernel;
 - a 1024 x 1024 FLI map of 1000 collisions (``jb.fli_map``) on the lens's section.
 
@@ -128,7 +128,7 @@ def main():
                     scene, states, n, driver="lockstep", progress=False
                 )
             if hasattr(scene, "dynamical_indices"):  # the kernel's tangent lives in state coordinates
-                from jaxbill import _pallas
+                from jaxbill._engine import pallas as _pallas
 
                 tangents = np.zeros_like(states)
                 dynamical = list(scene.dynamical_indices)

@@ -17,7 +17,7 @@ Prints markdown tables:
    ``tracemalloc`` during it (numpy arrays included), and the device's peak
    bytes in use where the backend reports it (GPUs; ``n/a`` on CPU).
 3. root-finder steps per collision of the spinning stick (how long a vmapped
-   lane waits for its slowest neighbour), from ``jaxbill._stick_in_circle``'s
+   lane waits for its slowest neighbour), from ``jaxbill._scenes.circle.scene``'s
    search run on the states of real orbits.
 
 Timings are medians of ``--repeats`` runs after a compiling one; the machine may
@@ -101,7 +101,7 @@ def _cpu_seconds() -> float:
 def jb_run(jb, scene, states0, n):
     run = getattr(jb, "run", None)
     if run is None:  # until jaxbill/__init__.py exports it
-        from jaxbill._streaming import run
+        from jaxbill._runs.streaming import run
     return run(scene, states0, n, progress=False)
 
 
@@ -215,8 +215,8 @@ def root_steps(ell, orbits, collisions) -> np.ndarray:
     import jax.numpy as jnp
 
     import jaxbill as jb
-    from jaxbill._first_root import first_root
-    from jaxbill._step import MAX_ROOT_STEPS, components
+    from jaxbill._engine.first_root import first_root
+    from jaxbill._engine.step import MAX_ROOT_STEPS, components
 
     scene = _scene(jb, ell, None)
     states0 = jnp.asarray(_states(ell, None, orbits, seed=1))

@@ -60,8 +60,8 @@ def main() -> None:
     import jax.numpy as jnp
 
     import jaxbill as jb
-    from jaxbill._chaos import finite_time_lyapunov, sample_energy_shell
-    from jaxbill._lyapunov import lyapunov_spectrum
+    from jaxbill._analysis.chaos import finite_time_lyapunov, sample_energy_shell
+    from jaxbill._analysis.lyapunov import lyapunov_spectrum
 
     n_plain, n_tangent = (200, 50) if args.quick else (2000, 400)
     print(

@@ -9,7 +9,7 @@ implementations of one algorithm, not two algorithms:
 * the spinning stick in a circle (``StickInCircle``, finite inertia): the quiet
   interval of ``_disc_crossing`` (radius ``R - ell``), the curvature bounds and
   time scale of ``_rotor_bounds``, the safe steps and stopping rule of
-  ``jaxbill._first_root`` (4 ulps of ``max(t, time_scale)``, at most 4096 steps),
+  ``jaxbill._engine.first_root`` (4 ulps of ``max(t, time_scale)``, at most 4096 steps),
   the impulse of ``StickInCircle.kick`` (normal scaled by ``sqrt(pi/2)/R``, one
   mass ratio ``M/I``), the corner rule (64 ulps of ``R^2``) and the angle wrap
   ``remainder(alpha + pi, 2 pi) - pi``;
@@ -17,7 +17,7 @@ implementations of one algorithm, not two algorithms:
   form ``_exit_time``;
 * the stick between two flat walls (``StickBetweenWalls2D``, turning or
   static): the sinusoidal gaps, quiet band and curvature bound of
-  ``jaxbill._flat_walls`` and the same safe-step search.
+  ``jaxbill._scenes.walls.engine`` and the same safe-step search.
 
 Scenes are described by ``params``, float64 of shape ``(5,)``:
 ``[kind, size, ell, mass, inertia]`` with ``kind`` one of the codes below and
@@ -43,7 +43,7 @@ import numpy as np
 ROTOR, LENS, CIRCLE, WALLS_ROTOR, WALLS_STATIC = 0, 1, 2, 3, 4
 KIND_NAMES = {ROTOR: "rotor", LENS: "lens", CIRCLE: "circle", WALLS_ROTOR: "walls rotor", WALLS_STATIC: "walls static"}
 
-# The constants of jaxbill's method (jaxbill._first_root, _stick_in_circle, _flat_walls).
+# The constants of jaxbill's method (jaxbill._engine.first_root, _stick_in_circle, _flat_walls).
 MAX_ROOT_STEPS = 4096
 EPS = float(np.finfo(np.float64).eps)
 RESOLUTION_ULPS = 4.0 * EPS
@@ -100,7 +100,7 @@ def make_engine(jit, fmod):
             return math.cos(a), math.sin(a)
         return 1.0, 0.0
 
-    # -- the safe step of jaxbill._first_root, one gap at a time --------------
+    # -- the safe step of jaxbill._engine.first_root, one gap at a time --------------
 
     @jit
     def step_below(g, slope, lower_curv):
@@ -704,14 +704,14 @@ def _relative_difference(a, b):
 def jaxbill_root_steps(params, states_before):
     """Steps of jaxbill's own root search from each state ``(m, 6)`` (private API; 0 for closed forms).
 
-    Uses the scene's own ``root_search``/``gaps_along_flight`` (``jaxbill._step``).
+    Uses the scene's own ``root_search``/``gaps_along_flight`` (``jaxbill._engine.step``).
     """
     import jax
     import jax.numpy as jnp
 
-    from jaxbill._first_root import first_root
-    from jaxbill._step import MAX_ROOT_STEPS as jaxbill_max_steps
-    from jaxbill._step import components
+    from jaxbill._engine.first_root import first_root
+    from jaxbill._engine.step import MAX_ROOT_STEPS as jaxbill_max_steps
+    from jaxbill._engine.step import components
 
     scene = jaxbill_scene(params)
     kind = int(params[0])

@@ -2,50 +2,60 @@
 
 Importing jaxbill switches JAX to float64 (``jax_enable_x64``): every collision
 time and state is computed in double precision, and the library's accuracy
-claims hold only there. It also asks XLA:CPU, before JAX's backend starts, to
-show one CPU device per core (so that a batch uses every core), unless the
-user has chosen otherwise; ``JAXBILL_COMPILE_LOOPS_WHOLE=1`` also makes single
-orbits 3-4x faster at the cost of bitwise agreement between programs
-(``jaxbill._backend``; ``jb.backend_settings()`` says what was set,
-``JAXBILL_NO_XLA_SETTINGS=1`` sets nothing).
+claims hold only there. It also asks XLA:CPU, before JAX's backend starts and
+never over a choice the user made, to show one CPU device per core (so that a
+batch uses every core) and, on x86-64, to compile each loop whole without fused
+multiply-adds (one orbit runs 10-20x faster, and every program still rounds
+alike, so results stay bitwise reproducible). ``jaxbill._engine.backend`` says
+why and how; ``jb.backend_settings()`` says what was set;
+``JAXBILL_NO_XLA_SETTINGS=1`` sets nothing.
 """
 
 import jax
 
-from ._backend import backend_settings, configure
+from jaxbill._engine.backend import backend_settings, configure
 
 configure()
 jax.config.update("jax_enable_x64", True)
 
-from ._chaos import (  # noqa: E402
+from jaxbill._analysis.chaos import (  # noqa: E402
     FiniteTimeLyapunov,
     chaos_threshold,
     chaotic_fraction,
     finite_time_lyapunov,
     sample_energy_shell,
 )
-from ._checker import CheckFlag, CheckReport, CheckResult, check  # noqa: E402
-from ._collision import (  # noqa: E402
-    Orbit,
-    collide,
-    orbit,
-    orbit_sharded,
-)
-from ._explorer import explore  # noqa: E402
-from ._indicators import FastLyapunovIndicator, Megno, fli, fli_map, megno  # noqa: E402
-from ._lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
-from ._periodic import (  # noqa: E402
+from jaxbill._analysis.indicators import FastLyapunovIndicator, Megno, fli, fli_map, megno  # noqa: E402
+from jaxbill._analysis.lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
+from jaxbill._analysis.periodic import (  # noqa: E402
     STABILITY_LABELS,
     PeriodicOrbit,
     continue_periodic_orbit,
     find_periodic_orbit,
     find_periodic_orbits,
 )
-from ._run_files import Checkpoint  # noqa: E402
-from ._run_guard import RunInterrupted  # noqa: E402
-from ._scene import angular_momentum, end_points, energy  # noqa: E402
-from ._section_measures import count_islands, covered_fraction, curve_thickness, is_chaotic, twin_divergence  # noqa: E402
-from ._sections import (  # noqa: E402
+from jaxbill._analysis.section_measures import (  # noqa: E402
+    count_islands,
+    covered_fraction,
+    curve_thickness,
+    is_chaotic,
+    twin_divergence,
+)
+from jaxbill._check.checker import CheckFlag, CheckReport, CheckResult, check  # noqa: E402
+from jaxbill._engine.collision import (  # noqa: E402
+    Orbit,
+    collide,
+    orbit,
+    orbit_sharded,
+)
+from jaxbill._engine.sharding import orbit_mesh  # noqa: E402
+from jaxbill._engine.tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
+from jaxbill._explorer import explore  # noqa: E402
+from jaxbill._runs.files import Checkpoint  # noqa: E402
+from jaxbill._runs.guard import RunInterrupted  # noqa: E402
+from jaxbill._runs.streaming import Run, Section, SectionPoints, run  # noqa: E402
+from jaxbill._scenes.circle.scene import StickInCircle  # noqa: E402
+from jaxbill._scenes.circle.sections import (  # noqa: E402
     birkhoff_section,
     incoming_states,
     paper_section,
@@ -55,14 +65,11 @@ from ._sections import (  # noqa: E402
     section_state,
     wall_length,
 )
-from ._sharding import orbit_mesh  # noqa: E402
-from ._stick_between_walls_2d import StickBetweenWalls2D  # noqa: E402
-from ._stick_between_walls_3d import StickBetweenWalls3D  # noqa: E402
-from ._stick_in_circle import StickInCircle  # noqa: E402
-from ._stick_in_ellipse import StickInEllipse  # noqa: E402
-from ._streaming import Run, Section, SectionPoints, run  # noqa: E402
-from ._tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
-from ._walls_sections import (  # noqa: E402
+from jaxbill._scenes.ellipse.scene import StickInEllipse  # noqa: E402
+from jaxbill._scenes.protocols import angular_momentum, end_points, energy  # noqa: E402
+from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D  # noqa: E402
+from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D  # noqa: E402
+from jaxbill._scenes.walls.sections import (  # noqa: E402
     floor_section,
     floor_section_bound,
     floor_seeds,

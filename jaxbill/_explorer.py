@@ -44,11 +44,11 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._collision import Orbit, orbit
-from ._scene import SectionChart
+from jaxbill._engine.collision import Orbit, orbit
+from jaxbill._scenes.protocols import SectionChart
 
 # A user's scene class may be registered here; jaxbill's scenes carry their own
-# ``section_chart`` (``jaxbill._scene.HasSection``).
+# ``section_chart`` (``jaxbill._scenes.protocols.HasSection``).
 
 
 SECTION_CHARTS: dict[type, SectionChart] = {}

@@ -54,12 +54,12 @@ measured against the largest angular momentum the energy allows at radius R);
 none for the lens, whose orbital angular momentum is not conserved. An orbit
 is counted as chaotic when it and a twin started with its velocity turned by
 ``1e-11`` rad end up more than ``1e-3`` apart (``is_chaotic`` in
-``jaxbill._section_measures``: tori give ``< 1e-6``, chaos order one); with
+``jaxbill._analysis.section_measures``: tori give ``< 1e-6``, chaos order one); with
 seeds uniform in the area-preserving ``(s, p)``, the chaotic share of seeds
 estimates the chaotic share of the section. Fig. 2's orbits also get their
 ``curve_thickness`` (a curve: below 0.01; an area: above 0.4).
 
-The wall scenes (``jaxbill._walls_sections``) start every orbit on the floor
+The wall scenes (``jaxbill._scenes.walls.sections``) start every orbit on the floor
 section at ``E' = 1/2`` (no horizontal motion), seeds uniform in the
 area-preserving ``(theta, p)``; chaotic means a twin with ``(theta_dot,
 eta_dot)`` turned by ``1e-11`` rad ends up more than ``1e-3`` away;
@@ -83,16 +83,28 @@ import time
 import numpy as np
 from matplotlib.figure import Figure
 
-from . import _walls_sections as ws
-from . import plotting
-from ._collision import orbit as run_orbit
-from ._ellipse_sections import draw_ellipse_orbit, ellipse_length
-from ._section_measures import CHAOTIC_DIVERGENCE, count_islands, curve_thickness, divergence, twin_states
-from ._sections import half_corner_angle, paper_section, reduced_section, section_seeds, section_state
-from ._stick_between_walls_2d import StickBetweenWalls2D
-from ._stick_between_walls_3d import StickBetweenWalls3D
-from ._stick_in_circle import StickInCircle
-from ._stick_in_ellipse import StickInEllipse
+from jaxbill import plotting
+from jaxbill._analysis.section_measures import (
+    CHAOTIC_DIVERGENCE,
+    count_islands,
+    curve_thickness,
+    divergence,
+    twin_states,
+)
+from jaxbill._engine.collision import orbit as run_orbit
+from jaxbill._scenes.circle.scene import StickInCircle
+from jaxbill._scenes.circle.sections import (
+    half_corner_angle,
+    paper_section,
+    reduced_section,
+    section_seeds,
+    section_state,
+)
+from jaxbill._scenes.ellipse.scene import StickInEllipse
+from jaxbill._scenes.ellipse.sections import draw_ellipse_orbit, ellipse_length
+from jaxbill._scenes.walls import sections as ws
+from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D
+from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D
 
 ENERGY = 0.5
 ANGULAR_MOMENTUM = 0.0

@@ -40,7 +40,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _figures(args: argparse.Namespace) -> int:
-    from ._figures import make_figures
+    from jaxbill._figures import make_figures
 
     summary = make_figures(args.out, quick=args.quick, progress=not args.no_progress)
     figures = len(summary["figures"]) + len(summary.get("walls", []))
@@ -76,7 +76,7 @@ def _explore(args: argparse.Namespace) -> int:
 
     if args.save:
         matplotlib.use("Agg")  # no window: seed, click, save
-    from ._explorer import explore, sample_clicks
+    from jaxbill._explorer import explore, sample_clicks
 
     invariants = {
         name: value

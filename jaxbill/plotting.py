@@ -13,7 +13,7 @@ is in the units of the states' velocities.
   the paper's rotating lens-shaped wall at one chosen contact.
 * ``draw_section``: section points of many orbits, coloured by orbit, with
   axes labelled for the chosen section (``"paper"``, ``"reduced"`` or
-  ``"birkhoff"``; see ``jaxbill._sections``).
+  ``"birkhoff"``; see ``jaxbill._scenes.circle.sections``).
 * ``draw_reduced_bounds``: the edge of the reachable region of the reduced
   section at given ``E`` and ``L``, and the lens corners.
 * ``draw_spiral_column``: the spiral-column picture in 3D, the column surface
@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from ._sections import half_corner_angle, reduced_section_bounds, wall_length
+from jaxbill._scenes.circle.sections import half_corner_angle, reduced_section_bounds, wall_length
 
 _SECTION_LABELS = {
     "paper": (r"$\phi_c = \arctan(p_y/p_x)$  (units of $\pi$)", r"$L_z = y\,p_x - x\,p_y$  (mass length$^2$/time)"),
@@ -334,7 +334,7 @@ def spiral_column_figure(scene, state0, orbit, **kwargs) -> Figure:
 # where every bounce is a specular reflection. ``draw_wall_flights``: an
 # orbit's flights in that plane (straight in 2D and for L_z = 0, curved for
 # L_z != 0). ``draw_floor_section`` and ``draw_floor_section_bounds``: the floor
-# section ``(theta mod pi, p)`` of ``jaxbill._walls_sections`` and its edge.
+# section ``(theta mod pi, p)`` of ``jaxbill._scenes.walls.sections`` and its edge.
 
 _FLOOR_SECTION_LABELS = {
     "2d": r"$\theta$ mod $\pi$ (rad; stick flat at $\pi/2$)",
@@ -445,7 +445,7 @@ def draw_wall_flights(
     potential barrier ``sin^2 theta = (I w_z)^2 / (2 I E')`` (dotted) keeps the
     stick away from the vertical.
     """
-    from ._walls_sections import _internal_energy_np, flight_paths
+    from jaxbill._scenes.walls.sections import _internal_energy_np, flight_paths
 
     states = _np(orbit.state)
     n = len(states) if collisions is None else min(collisions, len(states))
@@ -516,7 +516,7 @@ def draw_floor_section(
 
 def draw_floor_section_bounds(ax, scene, energy: float = 0.5, spin: float = 0.0, *, color="k"):
     """Edge ``p = +-floor_section_bound(theta)`` of the floor section at ``E'`` (and ``I w_z = spin``), and the kink."""
-    from ._walls_sections import floor_section_bound
+    from jaxbill._scenes.walls.sections import floor_section_bound
 
     theta = np.linspace(0.0, np.pi, 1601)
     bound = _np(floor_section_bound(scene, theta, energy, spin))

@@ -1,4 +1,4 @@
-"""Chaos indicators over a batch (jaxbill._chaos)."""
+"""Chaos indicators over a batch (jaxbill._analysis.chaos)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._chaos import chaos_threshold, chaotic_fraction, finite_time_lyapunov, sample_energy_shell
-from jaxbill._lyapunov import lyapunov_spectrum
+from jaxbill._analysis.chaos import chaos_threshold, chaotic_fraction, finite_time_lyapunov, sample_energy_shell
+from jaxbill._analysis.lyapunov import lyapunov_spectrum
 
 
 @pytest.mark.parametrize(

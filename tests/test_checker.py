@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._checker import check
+from jaxbill._check.checker import check
 
 TOL = 1e-8
 LOCAL_TOL = 1e-9  # one flight from the same state: only the checker's own error

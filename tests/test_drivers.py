@@ -1,6 +1,6 @@
 """The two batch drivers, lockstep and the lane state machine, run the same collision map.
 
-Both are built from the scene's own pieces (``jaxbill._step``); the lane state
+Both are built from the scene's own pieces (``jaxbill._engine.step``); the lane state
 machine takes the root steps of many orbits in one loop, none waiting for
 another. From identical states they must find the same contacts, in the same
 number of root steps, with states and times equal to rounding; and the state
@@ -15,8 +15,10 @@ import pytest
 
 import jaxbill as jb
 from helpers import random_states
-from jaxbill import _collision, _lanes, _step
-from jaxbill._first_root import first_root
+from jaxbill._engine import collision as _collision
+from jaxbill._engine import lanes as _lanes
+from jaxbill._engine import step as _step
+from jaxbill._engine.first_root import first_root
 
 INF = float("inf")
 N = 40
@@ -220,7 +222,7 @@ def test_unknown_driver_is_refused():
 # ---------------------------------------------------------------------------
 # the Pallas kernel (interpret mode on the CPU; lowered for CUDA)
 # ---------------------------------------------------------------------------
-from jaxbill import _pallas  # noqa: E402
+from jaxbill._engine import pallas as _pallas  # noqa: E402
 
 
 @pytest.mark.parametrize("name", list(scenes()))
@@ -284,8 +286,8 @@ def test_pallas_kernel_lowers_for_cuda_without_a_gpu(name):
 
 
 def _fli_starting_vectors(scene, states):
-    from jaxbill._indicators import _initial_vector
-    from jaxbill._tangent import to_state_space
+    from jaxbill._analysis.indicators import _initial_vector
+    from jaxbill._engine.tangent import to_state_space
 
     return jax.vmap(lambda s: to_state_space(scene, s, _initial_vector(scene, s, None, "collision")[:, None])[:, 0])(
         jnp.asarray(states)

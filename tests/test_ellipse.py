@@ -19,7 +19,7 @@ jax = pytest.importorskip("jax")
 jb = pytest.importorskip("jaxbill")
 import jax.numpy as jnp  # noqa: E402
 
-from jaxbill._smooth_table import EllipseTable  # noqa: E402
+from jaxbill._scenes.smooth_table import EllipseTable  # noqa: E402
 
 SCENES = {
     "rotor_ratio_2": dict(a=2.0, b=1.0, ell=0.6),
@@ -252,7 +252,7 @@ def test_curvature_bounds_hold_along_flights(name):
 
 def test_engine_pieces_compose_to_the_collision():
     """root_search_setup, contact_gaps and resolve_contact give what collide gives, and the slope is d gap/dt."""
-    from jaxbill._first_root import RootBounds, first_root
+    from jaxbill._engine.first_root import RootBounds, first_root
 
     scene = jb.StickInEllipse(2.5, 1.5, 0.8)
     state = jnp.asarray([0.2, -0.1, 0.4, 0.6, 0.5, 1.1])

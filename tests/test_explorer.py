@@ -25,8 +25,8 @@ from matplotlib.backend_bases import MouseButton, MouseEvent
 
 import jaxbill as jb
 from jaxbill import _explorer
-from jaxbill._sections import CIRCLE_CHART
-from jaxbill._wall_charts import WALLS_2D_CHART
+from jaxbill._scenes.circle.sections import CIRCLE_CHART
+from jaxbill._scenes.walls.charts import WALLS_2D_CHART
 
 SMALL = dict(survey_orbits=8, survey_collisions=200, click_collisions=400, chunk=100)
 

@@ -1,4 +1,4 @@
-"""Fast chaos indicators (jaxbill._indicators): FLI and MEGNO against their known behaviour.
+"""Fast chaos indicators (jaxbill._analysis.indicators): FLI and MEGNO against their known behaviour.
 
 References, independent of the code:
 * analytic growth laws fed to the accumulator: linear growth gives
@@ -25,7 +25,7 @@ import pytest
 from scipy.integrate import quad
 
 import jaxbill as jb
-from jaxbill._indicators import _accumulate, _mean_megno
+from jaxbill._analysis.indicators import _accumulate, _mean_megno
 
 N = 2000
 LOG4 = math.log(4.0)

@@ -1,4 +1,4 @@
-"""Lyapunov spectra by Benettin's repeated QR (jaxbill._lyapunov).
+"""Lyapunov spectra by Benettin's repeated QR (jaxbill._analysis.lyapunov).
 
 Tolerance on exponents that should vanish or cancel: ``tol(n) = 2 log(n) / T(n)``
 per unit time (``T(n)`` the time of ``n`` collisions), the size of the
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._lyapunov import lyapunov_spectrum
+from jaxbill._analysis.lyapunov import lyapunov_spectrum
 
 N = 20000
 # Chaotic orbits (checked: lambda_1 > 0.1 per unit time).
@@ -106,7 +106,7 @@ def test_qr_every_k_gives_the_same_exponents():
 
 
 def test_memory_does_not_grow_with_n():
-    from jaxbill._lyapunov import _initial_vectors, _spectrum
+    from jaxbill._analysis.lyapunov import _initial_vectors, _spectrum
 
     scene = jb.StickInCircle(**ROTOR[0])
     frame = _initial_vectors(6, 6)

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._periodic import find_periodic_orbit, reduced_state
+from jaxbill._analysis.periodic import find_periodic_orbit, reduced_state
 
 N_COLLISIONS = 6
 REL = 1e-6

@@ -1,4 +1,4 @@
-r"""Periodic orbits by Levenberg-Marquardt on the section map (jaxbill._periodic).
+r"""Periodic orbits by Levenberg-Marquardt on the section map (jaxbill._analysis.periodic).
 
 The diameter orbit, derived by hand
 -----------------------------------
@@ -47,7 +47,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._periodic import (
+from jaxbill._analysis.periodic import (
     continue_periodic_orbit,
     find_periodic_orbit,
     find_periodic_orbits,

@@ -26,7 +26,10 @@ import pytest
 
 import jaxbill as jb
 from helpers import random_states
-from jaxbill import Section, _run_files, _run_guard, _streaming, run
+from jaxbill import Section, run
+from jaxbill._runs import files as _run_files
+from jaxbill._runs import guard as _run_guard
+from jaxbill._runs import streaming as _streaming
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TIMEOUT_S = 180
@@ -107,7 +110,7 @@ _RACER = """
     tests, out, seed, me, other = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
     sys.path.insert(0, tests)
     import jaxbill as jb
-    from jaxbill import _streaming
+    from jaxbill._runs import streaming as _streaming
     from test_run_faults import RACE_CHUNK, RACE_EVERY, RACE_N, scene, state_for
 
     original = _streaming._ProgressBar.update
@@ -315,7 +318,7 @@ _STOPPED_BY_SIGTERM = """
     tests, out, started = sys.argv[1], sys.argv[2], sys.argv[3]
     sys.path.insert(0, tests)
     import jaxbill as jb
-    from jaxbill import _streaming
+    from jaxbill._runs import streaming as _streaming
     from test_run_faults import SIGNAL_CHUNK, SIGNAL_EVERY, SIGNAL_N, scene, state_for
 
     def slowly(self, done):

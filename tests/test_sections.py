@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._section_measures import count_islands, covered_fraction, curve_thickness
-from jaxbill._sections import (
+from jaxbill._analysis.section_measures import count_islands, covered_fraction, curve_thickness
+from jaxbill._scenes.circle.sections import (
     birkhoff_section,
     incoming_states,
     paper_section,

@@ -19,8 +19,8 @@ import pytest
 import jaxbill as jb
 from helpers import random_states
 from jaxbill import run
-from jaxbill._collision import orbit_sharded
-from jaxbill._sharding import orbit_mesh, pad_batch, padded_batch_size
+from jaxbill._engine.collision import orbit_sharded
+from jaxbill._engine.sharding import orbit_mesh, pad_batch, padded_batch_size
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 # The sizes of tests/test_streaming.py, so that in one pytest session the

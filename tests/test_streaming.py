@@ -16,7 +16,8 @@ import pytest
 
 import jaxbill as jb
 from helpers import random_states
-from jaxbill import Section, _streaming, run
+from jaxbill import Section, run
+from jaxbill._runs import streaming as _streaming
 
 INF = float("inf")
 N = 120  # collisions per orbit in most tests
@@ -54,7 +55,7 @@ def expected_single():
 def expected_batch():
     """``{kind: (scene, states0, jb.orbit(...))}`` for a batch of one full lane and a
     few more orbits: at least one full lane, so that jb.orbit runs the same
-    vectorised program as jb.run (see jaxbill._sharding), and not a multiple of it."""
+    vectorised program as jb.run (see jaxbill._engine.sharding), and not a multiple of it."""
     out = {}
     for make_scene in (rotor, lens):
         scene = make_scene()

@@ -1,4 +1,4 @@
-"""Tangent maps of the collision map and of the flow (jaxbill._tangent).
+"""Tangent maps of the collision map and of the flow (jaxbill._engine.tangent).
 
 * Central finite differences in float64 agree with the autodiff Jacobians to
   relative 1e-6 on random states away from corners and grazing, for every kind
@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._collision import _collide
-from jaxbill._tangent import dynamical_indices, phase_velocity, tangent_map
+from jaxbill._engine.collision import _collide
+from jaxbill._engine.tangent import dynamical_indices, phase_velocity, tangent_map
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import dph_reference as dph

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill import _walls_checker as wc
-from jaxbill._walls_checker import check_walls
+from jaxbill._check import walls as wc
+from jaxbill._check.walls import check_walls
 
 N = 60
 TOL = 1e-6  # whole-orbit comparison (and the chaos horizon's threshold)

@@ -50,8 +50,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._collision import _collide
-from jaxbill._tangent import dynamical_frame, tangent_map
+from jaxbill._engine.collision import _collide
+from jaxbill._engine.tangent import dynamical_frame, tangent_map
 
 FD_STEP = 1e-6
 FD_RTOL = 1e-6

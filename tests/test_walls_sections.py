@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._walls_sections import (
+from jaxbill._scenes.walls.sections import (
     flight_paths,
     floor_section,
     floor_section_bound,

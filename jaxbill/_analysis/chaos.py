@@ -1,0 +1,247 @@
+"""Chaos indicators over a batch: finite-time largest Lyapunov exponents and the chaotic fraction.
+
+``sample_energy_shell`` draws initial conditions with the microcanonical
+(Liouville) measure restricted to fixed energy ``E`` and, for a spinning stick,
+fixed total angular momentum ``L``; ``finite_time_lyapunov`` gives each one's
+largest exponent after ``n`` collisions; ``chaotic_fraction`` is the weighted
+fraction whose exponent exceeds a threshold, an estimate of the fraction of the
+``(E, L)`` shell filled by chaotic orbits.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbill._engine.collision import _check_eagerly, _poison_if
+from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.validation import check_count
+from jaxbill._scenes.protocols import Scene
+
+
+class FiniteTimeLyapunov(eqx.Module):
+    """Finite-time largest Lyapunov exponents of a batch of orbits.
+
+    Attributes:
+        per_time: ``(B,)`` largest exponent per unit time after ``n`` collisions.
+        per_collision: ``(B,)`` the same growth per collision.
+        time: ``(B,)`` elapsed time over the ``n`` collisions.
+        n: number of collisions (static).
+    """
+
+    per_time: jax.Array
+    per_collision: jax.Array
+    time: jax.Array
+    n: int = eqx.field(static=True)
+
+
+def _ftle_one(scene, state0, n, vector0):
+    def step(carry, _):
+        state, v, log_growth, t = carry
+        vectors = to_state_space(scene, state, v[:, None])
+        state, dt, _, vectors = push_forward(scene, state, vectors, flow=True)
+        v = to_dynamical(scene, state, vectors)[:, 0]
+        norm = jnp.linalg.norm(v)
+        return (state, v / norm, log_growth + jnp.log(norm), t + dt), None
+
+    init = (state0, vector0, jnp.zeros(()), jnp.zeros(()))
+    (_, _, log_growth, t), _ = jax.lax.scan(step, init, None, length=n)
+    # Later states come from the map itself; only the start needs checking.
+    return _poison_if(~scene.is_valid(state0), log_growth / t, log_growth / n, t)
+
+
+@eqx.filter_jit
+def _ftle_jit(scene, states, n, vector0):
+    per_time, per_collision, t = jax.vmap(_ftle_one, in_axes=(None, 0, None, None))(scene, states, n, vector0)
+    return FiniteTimeLyapunov(per_time=per_time, per_collision=per_collision, time=t, n=n)
+
+
+def finite_time_lyapunov(scene: Scene, states: jax.Array, n: int) -> FiniteTimeLyapunov:
+    """The largest Lyapunov exponent of each orbit of a batch, after ``n`` collisions.
+
+    One tangent vector (a fixed direction in general position) is carried by the
+    flow's tangent maps and renormalised at every collision; memory does not grow
+    with ``n``. Regular (quasi-periodic) orbits give exponents that decay like
+    ``log(n) / n`` (tangent vectors grow linearly); chaotic ones converge to a
+    positive value.
+
+    Args:
+        scene: any scene (the vector lives in its dynamical directions, see
+            ``jaxbill.dynamical_frame``).
+        states: shape ``(B, S)`` (or ``(S,)``, treated as a batch of one),
+            ``S = scene.state_size``.
+        n: number of collisions (Python int, static).
+    """
+    n = check_count("n", n, 1, "number of collisions")
+    _check_eagerly(scene, states)  # before any conversion: a bool or complex state is refused, not cast
+    states = jnp.atleast_2d(jnp.asarray(states, jnp.float64))
+    k = dynamical_size(scene)
+    v0 = np.random.default_rng(7).standard_normal(k)
+    return _ftle_jit(scene, states, n, jnp.asarray(v0 / np.linalg.norm(v0)))
+
+
+def chaos_threshold(n: int, factor: float = 5.0) -> float:
+    """Default threshold on the per-collision exponent: ``factor * log(n) / n``.
+
+    A regular orbit's tangent vector grows at most polynomially (linearly for a
+    twist), so its finite-time exponent per collision is about ``log(n) / n``;
+    ``factor`` leaves room for the prefactor.
+    """
+    return factor * float(np.log(n)) / n
+
+
+def chaotic_fraction(exponents, weights=None, threshold: float | None = None, n: int | None = None) -> float:
+    """Weighted fraction of orbits whose finite-time exponent exceeds ``threshold``.
+
+    Args:
+        exponents: ``(B,)`` per-collision finite-time exponents (e.g.
+            ``finite_time_lyapunov(...).per_collision``).
+        weights: ``(B,)`` sample weights (from ``sample_energy_shell``); default equal.
+        threshold: default ``chaos_threshold(n)``.
+        n: the number of collisions behind the exponents (for the default threshold).
+    """
+    e = np.asarray(exponents, dtype=np.float64)
+    w = np.ones_like(e) if weights is None else np.asarray(weights, dtype=np.float64)
+    if threshold is None:
+        if n is None:
+            raise ValueError("give threshold, or n for the default threshold 5 log(n)/n")
+        threshold = chaos_threshold(n)
+    ok = np.isfinite(e)
+    return float(np.sum(w[ok] * (e[ok] > threshold)) / np.sum(w[ok]))
+
+
+def sample_energy_shell(
+    scene,
+    size: int,
+    *,
+    energy: float = 0.5,
+    angular_momentum: float | None = None,
+    seed: int = 0,
+    margin: float = 1e-9,
+):
+    """Initial conditions with the Liouville measure on a shell of fixed ``E`` (and ``L``).
+
+    The scene draws them (``sample_states``, the ``SamplesStates`` protocol);
+    this loops until ``size`` are kept. What follows is ``StickInCircle``'s
+    sampler (``StickInEllipse``'s: ``table_shell_candidates``, energy only).
+
+    Configurations ``(x, y, alpha)`` are drawn uniformly among those with both
+    ends inside the circle (by ``margin``, relative to ``R``). Velocities, in the
+    mass-weighted coordinates ``pi = (sqrt(M) vx, sqrt(M) vy, sqrt(I) omega)``
+    where the kinetic energy is ``|pi|^2 / 2``:
+
+    * energy only (static lens, circle, or ``angular_momentum=None``):
+      ``pi`` uniform on its sphere ``|pi|^2 = 2E`` (a circle for the lens and
+      the circle billiard, whose spin is zero); all weights are 1.
+    * energy and angular momentum (spinning stick): ``L = b(q) . pi`` with
+      ``b = (-sqrt(M) y, sqrt(M) x, sqrt(I))`` is linear in ``pi``, so the shell
+      over a configuration is a circle, the sphere cut by a plane at distance
+      ``L / |b|``, drawn uniformly. Integrating ``delta(H - E) delta(L - b.pi)``
+      over ``pi`` gives ``2 pi / |b(q)|`` when the plane cuts the sphere and 0
+      otherwise: that is each sample's weight (normalised to mean 1 over the
+      samples kept).
+
+    Returns:
+        ``(states, weights)``: numpy arrays of shapes ``(size, 6)`` and ``(size,)``.
+        Weighted averages over them are microcanonical averages.
+    """
+    draw = getattr(scene, "sample_states", None)
+    if draw is None:
+        raise TypeError(
+            f"scene: {type(scene).__name__} cannot draw states on an energy shell (no sample_states: "
+            "the SamplesStates protocol of jaxbill._scenes.protocols; the stick in a circle and in an ellipse have one)"
+        )
+    rng = np.random.default_rng(seed)
+    states, weights = [], []
+    count = 0
+    while count < size:
+        m = 2 * (size - count) + 16
+        batch, w = draw(rng, m, energy, angular_momentum=angular_momentum, margin=margin)
+        states.append(batch)
+        weights.append(w)
+        count += len(w)
+    states = np.concatenate(states)[:size]
+    weights = np.concatenate(weights)[:size]
+    return states, weights / weights.mean()
+
+
+def circle_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=None, margin: float = 1e-9):
+    """``StickInCircle.sample_states``: ``m`` tries, the ``(states (k, 6), weights (k,))`` kept (see
+    ``sample_energy_shell``); configurations uniform in the square ``[-R, R]^2 x [-pi, pi)``, kept when both
+    ends are inside by ``margin R``."""
+    R = float(scene.R)
+    ell = float(scene.ell)
+    mass = float(scene.mass)
+    pin_l = scene.kind == "rotor" and angular_momentum is not None
+    if angular_momentum is not None and scene.kind != "rotor":
+        raise ValueError("angular_momentum is conserved only for a spinning stick (finite inertia, ell > 0)")
+    inertia = float(scene.inertia) if scene.kind == "rotor" else 0.0
+    c = rng.uniform(-R, R, (m, 2))
+    alpha = rng.uniform(-np.pi, np.pi, m)
+    u = np.stack([np.cos(alpha), np.sin(alpha)], axis=1)
+    inside = np.maximum(np.linalg.norm(c + ell * u, axis=1), np.linalg.norm(c - ell * u, axis=1)) < R * (1 - margin)
+    c, alpha = c[inside], alpha[inside]
+    k = len(alpha)
+    if scene.kind == "rotor":
+        if pin_l:
+            b = np.stack([-np.sqrt(mass) * c[:, 1], np.sqrt(mass) * c[:, 0], np.full(k, np.sqrt(inertia))], 1)
+            bnorm = np.linalg.norm(b, axis=1)
+            d = angular_momentum / bnorm
+            reach = 2 * energy - d * d
+            keep = reach > 0
+            b, bnorm, d, reach = b[keep], bnorm[keep], d[keep], reach[keep]
+            c, alpha = c[keep], alpha[keep]
+            bhat = b / bnorm[:, None]
+            # Orthonormal basis of the plane perpendicular to bhat.
+            e1 = np.cross(bhat, np.array([0.0, 0.0, 1.0]))
+            e1 /= np.linalg.norm(e1, axis=1)[:, None]
+            e2 = np.cross(bhat, e1)
+            psi = rng.uniform(-np.pi, np.pi, len(d))
+            r = np.sqrt(reach)
+            pi = d[:, None] * bhat + r[:, None] * (np.cos(psi)[:, None] * e1 + np.sin(psi)[:, None] * e2)
+            w = 1.0 / bnorm
+        else:
+            pi = rng.standard_normal((k, 3))
+            pi *= np.sqrt(2 * energy) / np.linalg.norm(pi, axis=1)[:, None]
+            w = np.ones(k)
+        v = pi[:, 0:2] / np.sqrt(mass)
+        omega = pi[:, 2] / np.sqrt(inertia)
+    else:
+        theta = rng.uniform(-np.pi, np.pi, k)
+        v = np.sqrt(2 * energy / mass) * np.stack([np.cos(theta), np.sin(theta)], 1)
+        omega = np.zeros(k)
+        w = np.ones(k)
+    return np.column_stack([c, alpha, v, omega]), w
+
+
+def table_shell_candidates(
+    scene, rng, m: int, energy: float, angular_momentum=None, margin: float = 1e-9, *, box: tuple[float, float]
+):
+    """Energy-shell tries for a planar stick ``[x, y, alpha, vx, vy, omega]`` in a fixed table (``StickInEllipse``).
+
+    Configurations uniform in ``[-box[0], box[0]] x [-box[1], box[1]] x [-pi, pi)``, kept where both gaps
+    exceed ``margin * gap_scale``; velocities uniform on the sphere ``|(sqrt(M) v, sqrt(I) omega)|^2 = 2E``
+    (on the circle ``sqrt(M)|v| = sqrt(2E)``, ``omega = 0``, for a stick that never turns or a point).
+    Returns ``(states (k, 6), weights (k,))``, weights 1: nothing but ``E`` is pinned.
+    """
+    if angular_momentum is not None:
+        raise ValueError(f"angular_momentum: {type(scene).__name__} conserves none; leave it None")
+    mass = float(scene.mass)
+    c = rng.uniform(-1.0, 1.0, (m, 2)) * np.asarray(box, dtype=np.float64)
+    alpha = rng.uniform(-np.pi, np.pi, m)
+    trial = np.column_stack([c, alpha, np.zeros((m, 3))])
+    inside = np.all(np.asarray(scene.gaps(trial)) > margin * float(scene.gap_scale), axis=1)
+    c, alpha = c[inside], alpha[inside]
+    k = len(alpha)
+    turning = np.isfinite(float(scene.inertia)) and float(scene.ell) > 0
+    if turning:
+        pi = rng.standard_normal((k, 3))
+        pi *= np.sqrt(2 * energy) / np.linalg.norm(pi, axis=1)[:, None]
+        v, omega = pi[:, 0:2] / np.sqrt(mass), pi[:, 2] / np.sqrt(float(scene.inertia))
+    else:
+        theta = rng.uniform(-np.pi, np.pi, k)
+        v = np.sqrt(2 * energy / mass) * np.stack([np.cos(theta), np.sin(theta)], 1)
+        omega = np.zeros(k)
+    return np.column_stack([c, alpha, v, omega]), np.ones(k)

@@ -1,0 +1,1 @@
+"""Independent checks of the collision map: the diffrax-integrated flights."""

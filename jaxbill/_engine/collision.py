@@ -1,0 +1,297 @@
+"""The collision map and the orbit scan."""
+
+from __future__ import annotations
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh
+from jaxtyping import Array, ArrayLike, Float, Int
+
+from jaxbill._engine import lanes
+from jaxbill._engine.sharding import DeviceChoice, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
+from jaxbill._engine.step import advance, components
+from jaxbill._engine.validation import (
+    check_orbit_length,
+    check_state,
+    check_state_static,
+    check_unbatched_scene,
+    is_concrete,
+    require_x64,
+)
+from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, Scene
+
+CORNER = SEVERAL_CONTACTS  # the stick in a circle's name for it: both ends at once
+
+
+class Orbit(eqx.Module):
+    """Collisions of one orbit (or a batch: then every field has a leading batch axis).
+
+    Attributes:
+        t: ``(n,)`` absolute time of each collision (time zero is ``state0``).
+        contact: ``(n,)`` int32: which end touched which wall (the codes are
+            the scene's; ``StickInCircle``: ``+1`` end P1, ``-1`` end P2), ``2``
+            several contacts at once (a corner), ``0`` none (the flight never
+            reaches a wall: ``t = inf`` from then on).
+        state: ``(n, S)`` the state just after each collision
+            (``S = scene.state_size``).
+    """
+
+    t: Float[Array, "*batch n"]
+    contact: Int[Array, "*batch n"]
+    state: Float[Array, "*batch n S"]
+
+
+def step_function(scene: Scene, state0: jax.Array):
+    """The collision map of the orbit from ``state0`` as a function of the state alone.
+
+    Returns ``state -> (new_state, dt, contact)`` for states known to be valid
+    (check ``scene.is_valid(state0)`` once; later states come from the map).
+    Quantities the scene holds fixed along an orbit are computed here once.
+    """
+    constants = scene.orbit_constants(components(state0))
+    return lambda state: advance(scene, state, constants)
+
+
+def _poison_if(bad, *arrays):
+    return tuple(
+        jnp.where(bad, jnp.nan, a) if jnp.issubdtype(a.dtype, jnp.floating) else jnp.where(bad, 0, a) for a in arrays
+    )
+
+
+def _collide(scene: Scene, state: jax.Array):
+    state = jnp.asarray(state, dtype=jnp.float64)
+    return _poison_if(~scene.is_valid(state), *step_function(scene, state)(state))
+
+
+def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
+    """The collision map: from ``state`` to the state just after the next collision.
+
+    Args:
+        scene: a ``StickInCircle``, ``StickBetweenWalls2D`` or
+            ``StickBetweenWalls3D``.
+        state: float64, shape ``(scene.state_size,)``, laid out as the scene's
+            module docstring says (``StickInCircle``: ``[x, y, alpha, vx, vy,
+            omega]``); both ends inside (an end on a wall must be moving
+            inwards, as it is just after a collision).
+
+    Returns:
+        ``(new_state, dt, contact)``: the state just after the impulse, the
+        flight time ``dt`` to the collision, and the contact: for
+        ``StickInCircle`` ``+1`` end P1, ``-1`` end P2; for the wall scenes
+        ``+1``/``-1`` P1/P2 on the floor and ``+3``/``-3`` on the ceiling;
+        ``2`` several contacts at once, ``0`` none. A flight that never
+        reaches a wall (e.g. ``v = 0`` with ``|c| + ell < R``) returns
+        ``dt = inf``, contact 0 and the state unchanged. After a collision
+        angles are wrapped into ``[-pi, pi)``.
+
+    What follows describes ``StickInCircle``; the wall scenes use the same
+    safe-step search on their four gaps (see ``jaxbill._scenes.walls.engine``).
+
+    The collision time. For the static lens (``inertia = inf``, ``omega = 0``)
+    each end moves on a straight line and its contact time is the larger root
+    of a quadratic, in a cancellation-free form; the same holds for the centre
+    in the circle billiard (``ell = 0``). For a spinning stick the gaps
+    ``g_k(t) = R^2 - |P_k(t)|^2`` are transcendental; the first root is found
+    by steps that provably cannot pass it (``jaxbill._engine.first_root``): each step
+    goes to the first root of a quadratic lower bound of ``g_k`` built from a
+    rigorous bound on ``g_k''``, and the search stops once a matching upper
+    bound brackets the root to a few ulps. So:
+
+    * a near double root (grazing hit) is approached from below, never
+      stepped over, and a near miss is walked past without a false hit;
+    * fast spin (``|omega| ell / |v| >= 1e3``) only shortens the safe steps,
+      and the search starts when the centre first reaches radius ``R - ell``
+      (no end can touch before), so it covers about one turn of the stick;
+    * both ends touching at once (a lens corner, to within 64 ulps of the
+      gap): both impulses are applied, the faster-approaching end first and
+      the other only if it still approaches; the contact is reported as ``2``;
+    * the end that just bounced has a root at ``t = 0``, but it is moving
+      inwards, and only a touching end that is *approaching* counts as a root
+      at the current time, so it is never found again.
+
+    Differentiation: the collision time of a spinning stick is differentiated
+    implicitly (a custom JVP rule on the root finder, ``dt = -dg/dg_t`` at the
+    root), never through the search iterations; the closed forms are
+    differentiated directly.
+
+    Invalid input inside ``jit`` (traced values cannot raise) poisons the
+    result: ``new_state`` and ``dt`` are NaN and the contact is 0. This covers
+    non-finite states, velocities whose squares overflow or underflow, an end
+    outside the wall by more than ``1e-12 R^2`` in the gap or on it (gap
+    ``<= 0``) without moving inwards, invalid traced parameters, nonzero spin
+    for the static lens, and a root search that hit its step bound. Called with concrete values
+    (outside ``jit``), bad input raises ``ValueError`` instead. The shape and
+    dtype of ``state`` and an unbatched ``scene`` are checked under ``jit``
+    too (``ValueError``); ``RuntimeError`` if ``jax_enable_x64`` is off.
+    """
+    _check_eagerly(scene, state, single=True)
+    new_state, dt, contact = _collide_jit(scene, jnp.asarray(state, dtype=jnp.float64))
+    return new_state, dt, contact
+
+
+_collide_jit = eqx.filter_jit(_collide)
+
+
+def _check_eagerly(scene, state, *, single: bool = False) -> None:
+    """The checks at every public entry point, before anything is compiled.
+
+    Static ones (float64 on, the state's shape and dtype, one scene rather
+    than a batch of them) raise even at trace time, under ``jit``; the value
+    checks run only on concrete input (``jit``/``vmap`` poison with NaN).
+    ``single``: ``state`` must be one state ``(S,)``, not a batch ``(B, S)``.
+    """
+    require_x64()
+    check_unbatched_scene(scene)
+    check_state_static(scene, state, single=single)
+    if all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
+        scene.check()
+        if is_concrete(state):
+            check_state(scene, state)
+
+
+def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
+    state0 = jnp.asarray(state0, dtype=jnp.float64)
+    advance = step_function(scene, state0)
+
+    def step(carry, _):
+        state, t = carry
+        new_state, dt, contact = advance(state)
+        t = t + dt
+        return (new_state, t), (t, contact, new_state)
+
+    _, (t, contact, states) = jax.lax.scan(step, (state0, jnp.zeros((), jnp.float64)), length=n)
+    # Later states come from the map itself; only the start needs checking.
+    t, contact, states = _poison_if(~scene.is_valid(state0), t, contact, states)
+    # After a root search that hit its step bound (t NaN from then on), the
+    # map runs on NaN states: their contacts mean nothing.
+    contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
+    return Orbit(t=t, contact=contact, state=states)
+
+
+def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "lockstep") -> Orbit:
+    """``jb.orbit`` of a batch ``(B, S)`` on one device, in lanes of ``scene.batch_chunk`` orbits."""
+    batch, size = states0.shape
+    chunk = max(1, min(batch, scene.batch_chunk))
+    pad = (-batch) % chunk
+    padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, size))])
+    if driver == "lockstep":
+        run_chunk = jax.vmap(_orbit_scan, in_axes=(None, 0, None))
+        out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
+        return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
+    plan = lanes.Plan("states", every=1, rows=n)
+    blocks = lanes.run_blocks(plan, chunk if jax.default_backend() == "cpu" else None)
+    _, (t, contact, states) = blocks(scene, padded, lanes.fresh_carry(scene, padded), 0, n)
+    invalid = ~jax.vmap(scene.is_valid)(padded)
+    t, contact, states = (
+        jnp.where(invalid.reshape(-1, *([1] * (a.ndim - 1))), jnp.nan if a.dtype == jnp.float64 else 0, a)
+        for a in (t, contact, states)
+    )
+    contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
+    return Orbit(t=t[:batch], contact=contact[:batch], state=states[:batch])
+
+
+@eqx.filter_jit
+def _orbit_jit(scene, state0, n, driver="lockstep"):
+    if state0.ndim == 1:
+        return _orbit_scan(scene, state0, n)
+    return _orbit_batch(scene, state0, n, driver)
+
+
+def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver: str | None = None) -> Orbit:
+    """The first ``n`` collisions of the orbit from ``state0``.
+
+    Args:
+        scene: any scene (``StickInCircle``, ``StickBetweenWalls2D``,
+            ``StickBetweenWalls3D``).
+        state0: initial state, shape ``(S,)`` (``S = scene.state_size``: 6, 6,
+            12), or a batch of them, shape ``(B, S)``.
+        n: number of collisions (a Python int, static: each new ``n`` compiles).
+        driver: for a batch, ``"lockstep"`` or ``"lanes"`` (see
+            ``jaxbill._engine.lanes.choose_driver``; ``"pallas"`` records no states
+            and stands for ``"lanes"`` here); ``None``, the default, picks
+            the faster on the platform (``"lockstep"`` on a CPU, ``"lanes"``
+            on a GPU). All give the same orbits to rounding.
+
+    Returns:
+        ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, S)``
+        (with a leading ``B`` axis for a batch). Equivalent to ``n`` applications
+        of ``collide`` under ``lax.scan``; ``jax.vmap(orbit, in_axes=(None, 0,
+        None))`` gives orbit by orbit what single runs give.
+
+    A concrete batch is split over every device JAX shows (``jb.orbit_sharded``;
+    on a CPU jaxbill shows one device per core), padded to whole lanes of
+    ``scene.batch_chunk`` orbits on each, so an orbit's result does not depend
+    on the batch around it or on the number of devices. Inside ``jit`` or
+    ``vmap`` a batch runs on one device.
+
+    Raises:
+        ValueError: for ``n`` not an integer in ``[0, 2**31 - 1]``, a bad
+            ``state0`` (wrong shape or dtype, NaN/inf, velocities whose squares
+            overflow or underflow, an end outside a wall or on it and moving
+            outwards, spin for a stick that cannot turn) or a batch of scenes
+            (use ``jax.vmap``). Inside ``jit``/``vmap`` the value checks cannot
+            run; the result is poisoned with NaN instead (see ``collide``).
+        RuntimeError: with ``jax_enable_x64`` turned off.
+    """
+    n = check_orbit_length(n)
+    _check_eagerly(scene, state0)
+    concrete = is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene))
+    if concrete and jnp.ndim(state0) == 2 and jax.process_count() == 1:
+        return orbit_sharded(scene, state0, n, driver=driver)
+    chosen = lanes.choose_driver(jax.devices()[0].platform, driver, record="states")
+    return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, chosen)
+
+
+@functools.lru_cache(maxsize=32)
+def _sharded_orbit_function(mesh: Mesh, n: int, driver: str):
+    return shard_over_orbits(lambda scene, states0: _orbit_batch(scene, states0, n, driver), mesh, (False, True))
+
+
+def orbit_sharded(
+    scene,
+    states0: Float[ArrayLike, "B S"],
+    n: int,
+    devices: DeviceChoice = None,
+    *,
+    driver: str | None = None,
+) -> Orbit:
+    """``jb.orbit`` for a batch, split over several devices.
+
+    Args:
+        scene: a scene with scalar parameters (e.g. ``StickInCircle``).
+        states0: ``(B, S)`` initial states (``S = scene.state_size``); under
+            ``jax.distributed`` every process passes the same full batch.
+        n: collisions per orbit (a Python int, static).
+        devices: see ``orbit_mesh`` (default: every device of every process).
+        driver: ``"lockstep"``, ``"lanes"`` or ``None`` (the platform's
+            default): see ``jb.orbit``.
+
+    Returns:
+        ``Orbit`` with fields ``(B, n)``, ``(B, n)`` and ``(B, n, S)``, as global
+        arrays split over the devices along the orbit axis (in one process
+        ``np.asarray`` gathers them; under ``jax.distributed`` each process
+        reads the orbits it holds with ``host_rows``, or all of them with
+        ``jax.experimental.multihost_utils.process_allgather``).
+
+    The batch is padded to whole lanes of ``scene.batch_chunk`` orbits on every
+    device, so each orbit is bitwise the same for any number of devices and
+    any batch size, and the same as ``jb.orbit`` whenever
+    ``B >= scene.batch_chunk`` (``jb.orbit`` runs a smaller batch as one
+    narrower program, which on CPU can round differently in the last bit).
+    """
+    n = check_orbit_length(n)
+    states0 = np.asarray(states0, dtype=np.float64)
+    if states0.ndim != 2:
+        raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
+    _check_eagerly(scene, states0)
+    mesh = orbit_mesh(devices)
+    driver = lanes.choose_driver(mesh.devices.flat[0].platform, driver, record="states")
+    batch = states0.shape[0]
+    padded = pad_batch(states0, padded_batch_size(batch, scene.batch_chunk, mesh))
+    scene_on_mesh = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
+    result = _sharded_orbit_function(mesh, n, driver)(scene_on_mesh, to_mesh(padded, mesh, batched=True))
+    return jax.tree.map(lambda a: a[:batch], result) if padded.shape[0] != batch else result

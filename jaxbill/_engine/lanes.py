@@ -1,0 +1,252 @@
+"""The XLA driver of the lane state machine: a block of orbits in one loop, none waiting for another.
+
+A batch runs in blocks of ``scene.batch_chunk`` lanes (one orbit each). Each
+block is one ``while_loop`` whose every turn advances every lane by one root
+step (``jaxbill._engine.step.lane_iteration``): a lane that has found its contact
+applies the impulse and starts its next flight in the same turn, so a block
+takes about as many turns as its busiest orbit has root steps *in all*, not
+the sum over collisions of the slowest lane's steps (what a vmapped loop of
+whole collisions costs).
+
+The driver also keeps each orbit's running statistics and writes its records
+(every ``k``-th state, or the points of a section) as the collisions happen.
+``jb.orbit`` on a batch and ``jb.run`` both run it, so the two give bitwise the
+same orbits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxbill._engine.step import MAX_ROOT_STEPS, begin_flight, components, end_and_begin, search_step, stacked
+
+# Contact codes counted one by one in the running statistics: every scene's codes
+# lie in -4..4 (StickInCircle: -1, 0, 1, 2; the wall scenes add -3, 3). A code
+# outside is counted in one extra bin, so no collision goes uncounted.
+CONTACT_CODES = tuple(range(-4, 5))
+
+# A block ends its lanes' flights once this share of its active lanes wait (see run_block).
+FINISH_FRACTION = 4
+
+
+class Carry(NamedTuple):
+    """What one orbit carries from chunk to chunk (on the device)."""
+
+    state: jax.Array  # (S,)
+    time: jax.Array  # ()
+    max_energy_error: jax.Array  # ()
+    contact_counts: jax.Array  # (len(CONTACT_CODES) + 1,) int64
+
+
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    """The static shape of one compiled chunk (part of the compilation key).
+
+    Attributes:
+        record: ``"final"``, ``"states"`` or ``"section"``.
+        every: ``"states"``: record the collisions whose number (from the start
+            of the whole run, 1 = the first) is a multiple of this.
+        rows: records per orbit per chunk on the device.
+        where, project: ``"section"``: the filter and the projection (see
+            ``jb.Section``).
+    """
+
+    record: str
+    every: int = 1
+    rows: int = 0
+    where: Callable | None = None
+    project: Callable | None = None
+
+
+def count_contact(counts: jax.Array, contact: jax.Array) -> jax.Array:
+    """``counts`` with one more collision of code ``contact`` (the last bin: any other code)."""
+    is_code = contact == jnp.asarray(CONTACT_CODES, dtype=jnp.int32)
+    return counts + jnp.append(is_code, ~jnp.any(is_code)).astype(jnp.int64)
+
+
+def energy_drift(scene, state0: jax.Array):
+    """``state -> |E - E0| / |E0|`` for the orbit from ``state0`` (``|E - E0|`` when ``E0 = 0``)."""
+    energy0 = scene.energy(state0)
+    unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
+    return lambda state: jnp.abs(scene.energy(state) - energy0) / unit
+
+
+def _empty_records(plan: Plan, scene, states0: jax.Array):
+    width, size = states0.shape
+    if plan.record == "final":
+        return ()
+    if plan.record == "states":
+        return (
+            jnp.zeros((width, plan.rows), jnp.float64),
+            jnp.zeros((width, plan.rows), jnp.int32),
+            jnp.zeros((width, plan.rows, size), jnp.float64),
+        )
+    shape = jax.eval_shape(_projection(plan), scene, states0[0])
+    # One row past the end takes what does not fit; the count goes on, so the
+    # host sees the overflow and runs the chunk again with more room.
+    return (
+        jnp.zeros((width, plan.rows + 1, *shape.shape), shape.dtype),
+        jnp.zeros((width, plan.rows + 1), jnp.float64),
+        jnp.zeros((width, plan.rows + 1), jnp.int64),
+        jnp.zeros((width,), jnp.int64),
+    )
+
+
+def _projection(plan: Plan):
+    return plan.project or (lambda scene, state: state)
+
+
+def _record(plan: Plan, scene, records, collided, number, start, carry: Carry, contact):
+    """One lane's records after a turn in which it may have completed collision ``number``."""
+    if plan.record == "final" or (plan.record == "states" and plan.rows == 0):
+        return records
+    if plan.record == "states":
+        t, codes, states = records
+        every = plan.every
+        kept = collided & (number % every == 0)
+        # Collision number c lands in row c // every - start // every - 1 of
+        # this chunk; rows past the end are dropped (never written).
+        row = jnp.where(kept, number // every - start // every - 1, plan.rows)
+        return (
+            t.at[row].set(carry.time, mode="drop"),
+            codes.at[row].set(contact, mode="drop"),
+            states.at[row].set(carry.state, mode="drop"),
+        )
+    point, t, numbers, fill = records
+    if plan.where is None:
+        raise ValueError(f"a {plan.record!r} plan records every collision, not a section")
+    kept = collided & jnp.asarray(plan.where(scene, carry.state, contact), dtype=bool)
+    row = jnp.where(kept, jnp.minimum(fill, plan.rows), plan.rows + 1)
+    return (
+        point.at[row].set(_projection(plan)(scene, carry.state), mode="drop"),
+        t.at[row].set(carry.time, mode="drop"),
+        numbers.at[row].set(number.astype(jnp.int64), mode="drop"),
+        fill + kept.astype(jnp.int64),
+    )
+
+
+def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, steps: Any):
+    """Collisions ``start + 1 .. start + steps`` of a block of orbits ``(W, S)`` from ``carry``.
+
+    ``states0`` are the orbits' first states (for their constants and energy);
+    ``carry`` holds where each orbit is now. ``start`` and ``steps`` may be
+    traced. Returns the new carry and the block's records (per lane; see
+    ``Plan``). Invalid first states are the caller's to poison.
+
+    Each turn of the loop takes one root step in every lane still searching.
+    Ending a flight (the impulse, the next flight's bounds, the statistics and
+    records) costs several root steps, so it is done for the whole block at
+    once, in the turns where at least ``1 / FINISH_FRACTION`` of the active
+    lanes wait for it (or all of them do): a lane idles a turn or two rather
+    than every lane paying for it every turn.
+    """
+    width = states0.shape[0]
+    constants = jax.vmap(lambda s: scene.orbit_constants(components(s)))(states0)
+    drift = jax.vmap(lambda s0, s: energy_drift(scene, s0)(s))
+    end_and_begin_lanes = jax.vmap(lambda lane, active, c: end_and_begin(scene, lane, active, c))
+    step_lanes = jax.vmap(lambda lane: search_step(scene, lane))
+    record = jax.vmap(
+        lambda r, collided, number, carry, contact: _record(plan, scene, r, collided, number, start, carry, contact)
+    )
+
+    def finish(loop):
+        lanes, carry, done, records = loop
+        lanes, (collided, new_parts, dt, contact) = end_and_begin_lanes(lanes, done < steps, constants)
+        new_state = stacked(new_parts)
+        hit = collided[:, None]
+        after = Carry(
+            state=jnp.where(hit, new_state, carry.state),
+            time=jnp.where(collided, carry.time + dt, carry.time),
+            # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
+            max_energy_error=jnp.where(
+                collided, jnp.maximum(carry.max_energy_error, drift(states0, new_state)), carry.max_energy_error
+            ),
+            contact_counts=jnp.where(hit, jax.vmap(count_contact)(carry.contact_counts, contact), carry.contact_counts),
+        )
+        done = done + collided.astype(jnp.int32)
+        return lanes, after, done, record(records, collided, start + done, after, contact)
+
+    def not_finished(loop):
+        return jnp.min(loop[2]) < steps
+
+    def one_turn(loop):
+        if not scene.searches_for_roots:
+            return finish(loop)  # every flight ends at once: a collision a turn
+        lanes, _, done, _ = loop
+        active = done < steps
+        waiting = jnp.sum(active & (lanes.found | (lanes.steps >= MAX_ROOT_STEPS)))
+        total = jnp.sum(active)
+        loop = jax.lax.cond((FINISH_FRACTION * waiting >= total) | (waiting == total), finish, lambda loop: loop, loop)
+        lanes, carry, done, records = loop
+        return step_lanes(lanes), carry, done, records
+
+    lanes = jax.vmap(lambda s, c: begin_flight(scene, components(s), c))(carry.state, constants)
+    loop = (lanes, carry, jnp.zeros(width, jnp.int32), _empty_records(plan, scene, states0))
+    _, carry, _, records = jax.lax.while_loop(not_finished, one_turn, loop)
+    return carry, records
+
+
+def fresh_carry(scene, states0: jax.Array) -> Carry:
+    """The carry at the start of a run: no time, no drift, no collisions."""
+    lead = states0.shape[:-1]
+    return Carry(
+        state=states0,
+        time=jnp.zeros(lead, jnp.float64),
+        max_energy_error=jnp.zeros(lead, jnp.float64),
+        contact_counts=jnp.zeros((*lead, len(CONTACT_CODES) + 1), jnp.int64),
+    )
+
+
+def run_blocks(plan: Plan, width: int | None) -> Callable[..., Any]:
+    """``run_block`` for a batch whose size is a multiple of ``width``: blocks of ``width`` lanes, one after another.
+
+    ``width = None``: the whole batch in one block, as on a GPU, which needs
+    every orbit at once to fill its threads (on a CPU, blocks of
+    ``scene.batch_chunk`` lanes keep a block's working set in cache).
+    """
+
+    def run(scene, states0, carry, start, steps):
+        if width is None:
+            return run_block(plan, scene, states0, carry, start, steps)
+
+        def as_blocks(a):
+            return a.reshape(a.shape[0] // width, width, *a.shape[1:])
+
+        out = jax.lax.map(
+            lambda block: run_block(plan, scene, block[0], block[1], start, steps),
+            (as_blocks(states0), jax.tree.map(as_blocks, carry)),
+        )
+        return jax.tree.map(lambda a: a.reshape(a.shape[0] * a.shape[1], *a.shape[2:]), out)
+
+    return run
+
+
+DRIVERS = ("lockstep", "lanes", "pallas")
+
+
+def choose_driver(platform: str, driver: str | None = None, record: str = "final") -> str:
+    """The batch driver: ``driver`` if given, else the one measured fastest on ``platform`` (``"cpu"``, ``"gpu"``, ...).
+
+    ``"lockstep"``: a vmapped loop of whole collisions, in lanes of
+    ``scene.batch_chunk`` orbits: each root step waits for the lane's slowest
+    orbit, but a turn is cheap, and on a CPU it is the fastest
+    (``benchmarks/bench_drivers.py``). ``"lanes"``: the state machine of this
+    module in an XLA loop, in which no orbit waits for another. ``"pallas"``:
+    the same state machine inside one Pallas kernel, a block of orbits in
+    registers (``jaxbill._engine.pallas``): the default on a GPU; it records final
+    states and statistics only, so records of states or sections take
+    ``"lanes"``. On a CPU ``"pallas"`` runs in Pallas's interpreter (slow: for
+    tests). All give the same orbits to rounding, with the same contacts.
+    """
+    if driver is None:
+        driver = "lockstep" if platform == "cpu" else "pallas"
+    elif driver not in DRIVERS:
+        raise ValueError(f"driver must be one of {DRIVERS} or None (the platform's default); got {driver!r}")
+    if driver == "pallas" and record != "final":
+        return "lanes"
+    return driver

@@ -1,0 +1,245 @@
+"""One collision of any scene, built from the scene's own pieces: the reference every driver runs.
+
+A scene answers four questions about one orbit (all pure, traceable functions
+of one orbit's values; see ``jaxbill._scenes.protocols.Scene``). A state is passed to them
+as its *components*, a tuple of ``S`` scalars (or of equal-shaped arrays, one
+element per orbit), and they return tuples: no slicing, stacking, gathering or
+reduction over a state or over the gaps, so that the same functions run under
+``vmap`` in XLA and, a block of orbits at a time, inside a Pallas (Triton)
+kernel, which lowers none of those.
+
+* ``scene.root_search(state) -> (profile, RootBounds)``: for a scene whose gaps
+  are transcendental in time (a turning stick), what its gaps depend on along
+  the flight from ``state`` and the bounds the safe-step search needs;
+* ``scene.gaps_along_flight(profile, t) -> (gaps, slopes)``: the K gaps and
+  their time derivatives after a flight of ``t``, as two K-tuples;
+* ``scene.closed_form_contact(state, constants) -> (t, index)``: for a scene
+  whose gaps are polynomials in time (a static body, a point), the contact
+  time directly;
+* ``scene.collide_at(state, t, index, constants) -> (state, contact)``: the
+  flight to ``t`` and the impulse(s) of the contact in gap ``index``.
+
+``scene.searches_for_roots`` (static) says which of the two contact-time paths
+the scene takes, so a scene compiles only what it needs.
+
+Two ways to run these pieces share them unchanged:
+
+* ``advance``: one whole collision (the search as a ``while_loop``), with the
+  contact time differentiated implicitly. ``jb.collide``, single orbits and the
+  tangent maps use it.
+* the lane state machine: ``search_step`` takes one root step of a lane's
+  search, and ``end_and_begin`` ends a lane's flight whose contact was found
+  (the impulse) and begins the next (``begin_flight``). A batch of orbits
+  advances in one loop of these two moves in which no orbit waits for
+  another. The XLA driver (``jaxbill._engine.lanes``) and the Pallas kernel
+  (``jaxbill._engine.pallas``) run it.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbill._engine.first_root import first_root, root_step, search_start, select
+from jaxbill._scenes.protocols import NO_CONTACT
+
+# Static bound on root-search steps per collision. Typical collisions take a
+# handful; a grazing departure can take a few hundred.
+MAX_ROOT_STEPS = 4096
+
+
+def components(state: jax.Array) -> tuple:
+    """The tuple of a state's ``S`` components: ``state[..., i]`` for each ``i``."""
+    return tuple(state[..., i] for i in range(state.shape[-1]))
+
+
+def stacked(parts: tuple) -> jax.Array:
+    """A state ``(..., S)`` from its components (the inverse of ``components``)."""
+    return jnp.stack(parts, axis=-1)
+
+
+def where(condition, if_true: tuple, if_false: tuple) -> tuple:
+    """``jnp.where`` component by component."""
+    return tuple(jnp.where(condition, a, b) for a, b in zip(if_true, if_false, strict=True))
+
+
+def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok):
+    """A collision's result: unchanged for a flight that never ends, NaN for a failed search."""
+    reached = jnp.isfinite(t)
+    new_state = where(reached, moved_and_kicked, state)
+    contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
+    new_state = tuple(jnp.where(ok, a, jnp.nan) for a in new_state)
+    contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
+    return new_state, jnp.where(ok, t, jnp.nan), contact
+
+
+# -- one whole collision ------------------------------------------------------------
+
+
+@jax.custom_jvp
+def searched_contact_time(scene, state: tuple):
+    """First contact of a turning body: ``(t, gap index, ok)`` (``t = inf``: never; ``ok``: within the step bound)."""
+    profile, bounds = scene.root_search(state)
+    t, index, _, ok = first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, MAX_ROOT_STEPS)
+    return t, index, ok
+
+
+# the integer outputs' tangents are float0 zeros, which jax's annotation of defjvp leaves out
+@searched_contact_time.defjvp  # pyright: ignore[reportArgumentType]
+def _searched_contact_time_jvp(primals, tangents):
+    # Implicit differentiation of g_k(t*; scene, state) = 0: the derivative of
+    # the root comes from the gap at the root, never from the search iterations.
+    scene, state = primals
+    t, index, ok = searched_contact_time(scene, state)
+    finite = jnp.isfinite(t)
+    t_safe = jnp.where(finite, t, 0.0)
+
+    def gap_at_root(scene_, state_):
+        profile, _ = scene_.root_search(state_)
+        return select(scene_.gaps_along_flight(profile, t_safe)[0], index)
+
+    _, gap_tangent = jax.jvp(gap_at_root, primals, tangents)
+    profile, _ = scene.root_search(state)
+    slope = select(scene.gaps_along_flight(profile, t_safe)[1], index)
+    t_tangent = jnp.where(finite & (slope != 0.0), -gap_tangent / slope, 0.0)
+    zero = np.zeros((), dtype=jax.dtypes.float0)
+    return (t, index, ok), (t_tangent, zero, zero)
+
+
+def advance(scene, state: jax.Array, constants: Any):
+    """``(new_state, dt, contact)``: the flight from ``state`` ``(S,)`` to the next collision and its impulse.
+
+    For a state known to be valid; ``constants`` are ``scene.orbit_constants``
+    of the orbit's first state (its components).
+    """
+    parts = components(state)
+    if scene.searches_for_roots:
+        t, index, ok = searched_contact_time(scene, parts)
+    else:
+        t, index = scene.closed_form_contact(parts, constants)
+        ok = jnp.array(True)
+    kicked, contact = scene.collide_at(parts, jnp.where(jnp.isfinite(t), t, 0.0), index, constants)
+    new_state, t, contact = finish_step(parts, kicked, t, contact, ok)
+    return stacked(new_state), t, contact
+
+
+# -- the lane state machine ---------------------------------------------------------
+
+
+class Lane(NamedTuple):
+    """One orbit in flight, between two root steps.
+
+    Attributes:
+        state: the components of the state at the start of the flight (just
+            after the last collision).
+        t: ``()`` the search's current time along the flight (for a
+            closed-form scene, the contact time).
+        index: ``()`` int32, the gap the search approaches (or found).
+        found: ``()`` the search is over: a proven root at ``t``, ``t = inf``
+            (no contact ever) or a hopeless (non-finite) lane.
+        steps: ``()`` int32, root steps taken in this flight.
+        profile: the scene's ``root_search`` profile (``None`` for a closed form).
+        bounds: the flight's ``RootBounds`` (``None`` for a closed form).
+    """
+
+    state: tuple
+    t: jax.Array
+    index: jax.Array
+    found: jax.Array
+    steps: jax.Array
+    profile: Any
+    bounds: Any
+
+
+def begin_flight(scene, state: tuple, constants: Any) -> Lane:
+    """A lane about to search for the contact that ends the flight from ``state`` (components)."""
+    if scene.searches_for_roots:
+        profile, bounds = scene.root_search(state)
+        t = search_start(bounds)
+        none = jnp.zeros(jnp.shape(t), jnp.int32)
+        return Lane(state, t, none, jnp.isinf(t), none, profile, bounds)
+    t, index = scene.closed_form_contact(state, constants)
+    # Shapes from t, not scalar literals: inside a kernel every lane field is a block.
+    return Lane(
+        state,
+        t,
+        index.astype(jnp.int32),
+        jnp.isfinite(t) | jnp.isnan(t) | jnp.isinf(t),
+        jnp.zeros(jnp.shape(t), jnp.int32),
+        None,
+        None,
+    )
+
+
+def search_step(scene, lane: Lane) -> Lane:
+    """One safe step of the lane's search (nothing for a lane whose search is over)."""
+    if not scene.searches_for_roots:
+        return lane
+    gap, slope = scene.gaps_along_flight(lane.profile, lane.t)
+    t, index, done = root_step(gap, slope, lane.bounds, lane.t)
+    searching = ~lane.found
+    return lane._replace(
+        t=jnp.where(searching, t, lane.t),
+        index=jnp.where(searching, index, lane.index),
+        found=lane.found | done,
+        steps=lane.steps + searching.astype(jnp.int32),
+    )
+
+
+def end_flight(scene, lane: Lane, constants: Any):
+    """``(new_state, dt, contact)`` of a lane whose search is over (or hit the step bound), as ``advance``
+    (``new_state`` as components)."""
+    t = lane.t
+    kicked, contact = scene.collide_at(lane.state, jnp.where(jnp.isfinite(t), t, 0.0), lane.index, constants)
+    return finish_step(lane.state, kicked, t, contact, lane.found)
+
+
+def end_flight_tangent(scene, lane: Lane, constants: Any, tangent: tuple) -> tuple:
+    """The collision map's tangent (``jb.tangent_map``, ``flow=False``) applied to ``tangent``, at a lane
+    whose contact was found; components in and out.
+
+    The contact time's derivative is implicit for a searched root
+    (``dt = -(grad g . w) / g'`` at the root, as ``searched_contact_time``'s
+    rule) and direct for a closed form; then the flight to the contact and
+    the impulse are differentiated along ``(w, dt)``. Pure elementwise work,
+    so it runs inside the Pallas kernel too.
+    """
+    state, t, index = lane.state, lane.t, lane.index
+    reached = jnp.isfinite(t)
+    t_safe = jnp.where(reached, t, 0.0)
+    if scene.searches_for_roots:
+
+        def gap_at_root(s):
+            return select(scene.gaps_along_flight(scene.root_search(s)[0], t_safe)[0], index)
+
+        _, gap_tangent = jax.jvp(gap_at_root, (state,), (tangent,))
+        slope = select(scene.gaps_along_flight(scene.root_search(state)[0], t_safe)[1], index)
+        t_tangent = jnp.where(reached & (slope != 0.0), -gap_tangent / jnp.where(slope != 0.0, slope, 1.0), 0.0)
+    else:
+        _, t_tangent = jax.jvp(lambda s: scene.closed_form_contact(s, constants)[0], (state,), (tangent,))
+        t_tangent = jnp.where(reached, t_tangent, 0.0)
+    _, new_tangent = jax.jvp(
+        lambda s, tt: scene.collide_at(s, tt, index, constants)[0], (state, t_safe), (tangent, t_tangent)
+    )
+    return where(reached, new_tangent, tangent)
+
+
+def tree_where(condition, if_true, if_false):
+    """``jnp.where`` leaf by leaf over two pytrees of one structure."""
+    return jax.tree.map(lambda a, b: jnp.where(condition, a, b), if_true, if_false)
+
+
+def end_and_begin(scene, lane: Lane, active: jax.Array, constants: Any):
+    """A lane whose search is over (or out of steps) applies its impulse and begins its next flight.
+
+    ``active = False`` freezes the lane (its orbit has all the collisions it
+    was asked for). Returns ``(lane, (collided, new_state, dt, contact))``:
+    whether the lane completed a collision, and that collision's result.
+    """
+    collided = active & (lane.found | (lane.steps >= MAX_ROOT_STEPS))
+    new_state, dt, contact = end_flight(scene, lane, constants)
+    lane = tree_where(collided, begin_flight(scene, new_state, constants), lane)
+    return lane, (collided, new_state, dt, contact)

@@ -1,0 +1,1 @@
+"""Long runs in bounded memory that survive faults: ``jb.run``, its files and its guards."""

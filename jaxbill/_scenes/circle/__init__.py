@@ -1,0 +1,1 @@
+"""The stick in a circle (rotor, lens, circle billiard) and its sections."""

@@ -1,0 +1,1 @@
+"""The stick in an ellipse and its sections."""

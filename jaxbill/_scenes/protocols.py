@@ -1,0 +1,309 @@
+"""What the collision engine and the analyses ask of a scene, and the contact codes every scene shares.
+
+A scene is an ``equinox.Module``: its physical parameters are differentiable
+leaves and its *kind* (which closed forms apply) is static, so that each scene
+compiles only the code it needs. The orbit scan, batching, streaming, tangent
+maps and Lyapunov spectra work on any object with the methods of ``Scene``.
+
+The analyses ask through one small protocol per capability, never through
+the scene's type: ``HasSection`` (section coordinates, the area-preserving
+one named, and the explorer's ``SectionChart``), ``HasCheckerFlight`` (the
+flight the diffrax checker integrates), ``HasPeriodicSymmetry`` (what
+periodic-orbit search divides out) and ``SamplesStates`` (valid starts on an
+energy shell). A scene provides those it can; ``docs/how-to/new-scene.md``
+says how to write one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import jax
+import numpy as np
+
+from jaxbill._engine.validation import WALL_TOLERANCE, as_states
+
+# Contact codes shared by every scene (``Orbit.contact``). Scenes add their own
+# nonzero codes for which end touched which wall.
+NO_CONTACT = 0  # the flight never reaches a wall: dt = inf, state unchanged
+SEVERAL_CONTACTS = 2  # two or more contacts resolved in one event (a corner or kink)
+
+__all__ = [
+    "NO_CONTACT",
+    "SEVERAL_CONTACTS",
+    "WALL_TOLERANCE",
+    "Scene",
+    "HasSection",
+    "HasCheckerFlight",
+    "CheckerFlight",
+    "HasPeriodicSymmetry",
+    "PERIODIC_SYMMETRIES",
+    "SamplesStates",
+    "SectionChart",
+]
+
+
+class Scene(Protocol):
+    """The interface of a scene (a structural type: scenes do not inherit from it)."""
+
+    state_size: ClassVar[int]  # length of the state vector
+    state_layout: ClassVar[str]  # e.g. "[x, y, alpha, vx, vy, omega]", for messages
+    gap_names: ClassVar[tuple[str, ...]]  # one name per contact gap, for messages
+    wall_name: ClassVar[str]  # "the circle", "the walls"
+
+    @property
+    def batch_chunk(self) -> int:
+        """Lanes per chunk in a batched run (a vmapped loop waits for its slowest lane)."""
+        ...
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        """The unit of the gaps, for ``WALL_TOLERANCE``."""
+        ...
+
+    def check(self) -> None:
+        """Raise ValueError for invalid concrete parameters."""
+        ...
+
+    def check_state_values(self, state) -> None:
+        """Scene-specific eager checks of a finite float64 numpy state ``(..., state_size)``."""
+        ...
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        """Traceable: parameters and ``state`` are a valid start (for NaN poisoning).
+
+        The traceable twin of the eager checks: finite, motion representable,
+        no end through a wall by more than ``WALL_TOLERANCE``, none on a wall
+        (gap ``<= 0``) without moving away from it.
+        """
+        ...
+
+    def motion_is_representable(self, state: jax.Array) -> jax.Array:
+        """Traceable ``(...)``: the velocities' squares and the energy are ordinary float64 numbers."""
+        ...
+
+    def orbit_constants(self, state0: tuple) -> Any:
+        """Quantities fixed along an orbit from ``state0`` (its components; a pytree, or None)."""
+        ...
+
+    # How a collision is computed (see jaxbill._engine.step): a scene whose gaps are
+    # transcendental in time answers root_search and gaps_along_flight, one
+    # whose gaps are polynomials answers closed_form_contact; both collide_at.
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """Static: the contact time needs the safe-step root search (else a closed form)."""
+        ...
+
+    def root_search(self, state: jax.Array) -> tuple[Any, Any]:
+        """``(profile, RootBounds)``: what the gaps depend on along the flight, and the search's bounds."""
+        ...
+
+    def gaps_along_flight(self, profile: Any, t: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """``(gap, slope)``, each ``(K,)``: the gaps and their time derivatives after a flight of ``t``."""
+        ...
+
+    def closed_form_contact(self, state: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array]:
+        """``(t, index)``: the contact time (``inf``: never) and which gap closes."""
+        ...
+
+    def collide_at(
+        self, state: jax.Array, t: jax.Array, index: jax.Array, constants: Any
+    ) -> tuple[jax.Array, jax.Array]:
+        """``(state, contact)``: the flight to ``t`` and the impulse(s) of the contact in gap ``index``."""
+
+    def gaps(self, state: jax.Array) -> jax.Array:
+        """Contact gaps ``(..., K)``, >= 0 inside."""
+        ...
+
+    def approach_speeds(self, state: jax.Array) -> jax.Array:
+        """Rate at which each gap closes ``(..., K)``, > 0 when approaching its wall."""
+        ...
+
+    def energy(self, state: jax.Array) -> jax.Array:
+        """Kinetic energy ``(...)``."""
+        ...
+
+
+# ---------------------------------------------------------------------------
+# What the analyses ask: one small protocol per capability
+# ---------------------------------------------------------------------------
+# The analyses (sections, the explorer, the diffrax checker, periodic-orbit
+# search, sampling) never test a scene's type: each asks the scene one of the
+# questions below. A scene answers those it can, as its own methods; an
+# analysis that needs a capability the scene lacks says so by name (an
+# ``AttributeError`` turned into a ``TypeError`` naming the capability).
+
+
+@dataclasses.dataclass(frozen=True)
+class SectionChart:
+    """How the explorer reads, seeds and draws one kind of scene's area-preserving section.
+
+    Every function takes the scene first; ``invariants`` is a dict of the
+    quantities the section holds fixed (its keys are those of
+    ``invariant_symbols``). Section points are ``(x, y)`` pairs: ``x`` across
+    the panel, ``y`` up.
+
+    Attributes:
+        title: the section's name, for the panel's title.
+        axis_labels: ``(x label, y label)`` with units.
+        invariant_symbols: the printed symbol of each invariant, keyed by
+            the keyword ``explore`` accepts for it (e.g. ``{"energy": "E"}``).
+        default_invariants: ``scene -> dict``: the invariants when
+            ``explore`` is given none.
+        x_range: ``scene -> (low, high)``: the span of ``x``.
+        edge: ``(scene, x (m,), invariants) -> (m, 2)``: the lowest and
+            highest reachable ``y`` at each ``x`` (NaN where none).
+        start: ``(scene, x (...), y (...), invariants) -> (states (..., S),
+            contacts (...))``: the state just after a collision at the
+            section point and its contact code; NaN states where
+            ``(x, y)`` is not reachable.
+        seeds: ``(scene, count, invariants) -> (states (count, S), contacts
+            (count,))``: starts spread evenly (in the section's area) over it.
+        points: ``(scene, states (..., S), contacts (...)) -> (..., 2)``: the
+            section point of each collision, NaN for collisions off the
+            section. Traceable: the explorer compiles it.
+        draw_configuration: ``(ax, scene, state0 (S,), orbit, color) ->
+            None``: the orbit (an ``Orbit`` of one orbit) in configuration
+            space, on a cleared ``Axes``.
+    """
+
+    title: str
+    axis_labels: tuple[str, str]
+    invariant_symbols: dict[str, str]
+    default_invariants: Callable[[Any], dict[str, float]]
+    x_range: Callable[[Any], tuple[float, float]]
+    edge: Callable[..., np.ndarray]
+    start: Callable[..., tuple[Any, Any]]
+    seeds: Callable[..., tuple[Any, Any]]
+    points: Callable[..., Any]
+    draw_configuration: Callable[..., None]
+
+
+class HasSection(Protocol):
+    """A scene with Poincaré-section coordinates at its collisions (sections, figures, the explorer).
+
+    ``sections`` names every section the scene offers; ``area_preserving_section``
+    is the one whose coordinates the collision map preserves area in (at the
+    invariants it holds fixed): "fraction covered" and island counts mean
+    something there only. ``section_chart`` is what ``jb.explore`` draws.
+    """
+
+    sections: ClassVar[tuple[str, ...]]
+    area_preserving_section: ClassVar[str]
+
+    def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
+        """Section points ``(..., 2)`` of states ``(..., S)`` just after collisions (``contacts (...)``
+        their codes, for scenes that need them); ``name`` one of ``sections`` (default: the
+        area-preserving one). Traceable."""
+        ...
+
+    def section_state(self, point: jax.Array, **invariants) -> jax.Array:
+        """The state ``(..., S)`` just after a collision at the area-preserving section's
+        ``point (..., 2)`` with the given invariants (NaN where unreachable)."""
+        ...
+
+    @property
+    def section_chart(self) -> SectionChart:
+        """How ``jb.explore`` seeds, reads and draws the area-preserving section."""
+        ...
+
+
+@runtime_checkable
+class CheckerFlight(Protocol):
+    """The free flight an independent checker integrates, built by the scene for one orbit.
+
+    ``check`` integrates ``n`` collisions from ``state0`` with diffrax (never
+    with jaxbill's collision times or impulse law) and compares them with
+    ``jb.orbit``; the options are those of ``jb.check``, each checker taking
+    the ones it knows (see ``jaxbill._check.checker.ColumnFlight``, the straight
+    flight of a point in ``(x, y, sqrt(I/M) alpha)`` inside the column the
+    gaps bound, and ``jaxbill._check.walls.ReducedWallsFlight``, the curved
+    flight of the reduced wall billiard).
+    """
+
+    def check(self, scene: Any, state0: np.ndarray, n: int, **options) -> Any:
+        """A ``CheckResult`` of ``n`` collisions from ``state0`` (shape ``(S,)``)."""
+        ...
+
+
+class HasCheckerFlight(Protocol):
+    """A scene that ``jb.check`` can verify: it says what flight the checker integrates."""
+
+    def checker_flight(self) -> CheckerFlight:
+        """The ``CheckerFlight`` of this (unbatched, concrete) scene."""
+        ...
+
+
+# The symmetries periodic-orbit search can divide out (``HasPeriodicSymmetry``):
+# "rotation" about the origin (the circle), "translation" along the walls (the
+# horizontal drift of the sticks between walls; in 3D also the turn about the
+# vertical), and "none" (the ellipse: the orbit must close in every coordinate).
+PERIODIC_SYMMETRIES = ("rotation", "translation", "none")
+
+
+class HasPeriodicSymmetry(Protocol):
+    """A scene ``find_periodic_orbit`` can search: the symmetry its solver divides out.
+
+    ``periodic_symmetry`` is one of ``PERIODIC_SYMMETRIES``;
+    ``jaxbill._analysis.periodic`` keeps one solver per symmetry (not per scene). The
+    solver for "none" asks the scene only for its collision map, energy, gaps
+    and ``section`` (the ``HasSection`` points it reports).
+    """
+
+    periodic_symmetry: ClassVar[str]
+
+
+class SamplesStates(Protocol):
+    """A scene that can draw valid starts with the Liouville measure on an energy shell."""
+
+    def sample_states(self, key: jax.Array, count: int, energy: float, **invariants) -> jax.Array:
+        """``(count, S)`` valid states of energy ``energy`` (and the other pinned ``invariants``),
+        distributed with the Liouville measure restricted to that shell."""
+        ...
+
+
+def chosen_section(scene: HasSection, name: str | None) -> str:
+    """``name``, or the scene's area-preserving section for ``None``; ValueError naming the choices otherwise."""
+    name = scene.area_preserving_section if name is None else name
+    if name not in scene.sections:
+        raise ValueError(f"name must be one of {scene.sections} for {type(scene).__name__}; got {name!r}")
+    return name
+
+
+def component(state, i: int):
+    """Component ``i`` of a state: ``state[..., i]`` of an array ``(..., S)``, ``state[i]`` of a tuple of components.
+
+    Lets one formula (an energy, say) serve both the analyses, which hold
+    states as arrays, and the engine's drivers, which hold them as components.
+    """
+    return state[i] if isinstance(state, tuple) else state[..., i]
+
+
+def _states(scene: Scene, state) -> jax.Array:
+    """``state`` as an array ``(..., S)``; ValueError for another last axis or a non-real dtype (static)."""
+    return as_states(scene, state, "state")
+
+
+def energy(scene: Scene, state: jax.Array) -> jax.Array:
+    """Kinetic energy of ``state`` (shape ``(..., S)``) in ``scene``: translation plus rotation."""
+    return scene.energy(_states(scene, state))
+
+
+def angular_momentum(scene: Scene, state: jax.Array) -> jax.Array:
+    """The scene's angular momentum (``StickInCircle``: about the origin; ``StickBetweenWalls3D``: ``L_z``).
+
+    Raises:
+        TypeError: for a scene without one (``StickBetweenWalls2D``: the walls
+            exert torques; its conserved momentum is ``M vx``).
+    """
+    if not hasattr(scene, "angular_momentum"):
+        raise TypeError(f"{type(scene).__name__} has no conserved angular momentum")
+    return scene.angular_momentum(_states(scene, state))
+
+
+def end_points(scene: Scene, state: jax.Array) -> jax.Array:
+    """Positions of the ends ``[P1, P2]``, shape ``(..., 2, D)`` (``D`` = 2 or 3)."""
+    return scene.end_points(_states(scene, state))

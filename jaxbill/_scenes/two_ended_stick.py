@@ -1,0 +1,75 @@
+"""What every planar stick scene shares: its direction, its free flight, and the contact of its two ends.
+
+A stick's ends are ``P1 = c + ell u`` (gap index 0, contact ``+1``) and
+``P2 = c - ell u`` (index 1, contact ``-1``), ``u = (cos alpha, sin alpha)``.
+The scenes (``StickInCircle``, ``StickInEllipse``) differ in their table, hence
+in their gaps, approach speeds and impulse; these functions take those as
+arguments. States are components ``(x, y, alpha, vx, vy, omega)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax.numpy as jnp
+
+from jaxbill._engine.first_root import select
+from jaxbill._engine.step import where
+from jaxbill._scenes.protocols import SEVERAL_CONTACTS
+
+END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
+
+# A second end within this many ulps of the gap scale of the wall at a contact
+# touches it at the same instant (a corner): both impulses are applied in one event.
+CORNER_ULPS = 64.0
+
+
+def direction(point: bool, alpha):
+    """``(cos alpha, sin alpha)``; ``(1, 0)`` for a point (``ell = 0``), which never needs it."""
+    if point:
+        return jnp.ones_like(alpha), jnp.zeros_like(alpha)
+    return jnp.cos(alpha), jnp.sin(alpha)
+
+
+def flight(turns: bool, state: tuple, t) -> tuple:
+    """Free flight of the components for time ``t``; ``alpha`` wrapped into ``[-pi, pi)``.
+
+    Wrapping keeps ``cos``/``sin`` of ``alpha`` exact to rounding however long
+    the run: an unwrapped angle of ``1e7`` radians would carry ``1e-9``
+    absolute error into every contact. A stick that never turns keeps ``alpha``.
+    """
+    x, y, alpha, vx, vy, omega = state
+    if turns:
+        alpha = jnp.remainder(alpha + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+    return x + vx * t, y + vy * t, alpha, vx, vy, omega
+
+
+def spin_term(point: bool, omega, term):
+    """``term`` (``I omega^2 / 2`` or ``I omega``); for a point 0 where ``omega = 0`` (``I = inf``: not NaN)."""
+    return jnp.where(omega == 0.0, 0.0, term) if point else term
+
+
+def resolve_two_ends(
+    kick: Callable, end_gaps: Callable, end_speeds: Callable, state: tuple, index, u: tuple, gap_scale
+):
+    """The impulse at end ``index`` (0: P1, 1: P2) touching the wall, and a simultaneous second contact.
+
+    ``kick(state, end_sign, u)``, ``end_gaps(state, u)`` and
+    ``end_speeds(state, u)`` are the scene's (2-tuples for the ends). If the
+    other end is on the wall too (within ``CORNER_ULPS`` ulps of
+    ``gap_scale``) and approaching, the faster-approaching end is kicked first
+    and the other after it if it still approaches: a deterministic rule for an
+    ill-posed event, reported as contact 2. Returns ``(state, contact)``.
+    """
+    gaps = end_gaps(state, u)
+    speeds = end_speeds(state, u)
+    other = 1 - index
+    gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
+    corner = (gap_other <= CORNER_ULPS * jnp.finfo(jnp.float64).eps * gap_scale) & (speed_other > 0.0)
+    first = jnp.where(corner & (speed_other > speed_index), other, index)
+    second = 1 - first
+    kicked = kick(state, select(END_SIGNS, first), u)
+    still_approaching = select(end_speeds(kicked, u), second) > 0.0
+    kicked = where(corner & still_approaching, kick(kicked, select(END_SIGNS, second), u), kicked)
+    contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
+    return kicked, contact
