@@ -23,7 +23,15 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxbill._engine.step import MAX_ROOT_STEPS, begin_flight, components, end_and_begin, search_step, stacked
+from jaxbill._engine.step import (
+    MAX_ROOT_STEPS,
+    begin_flight,
+    components,
+    end_and_begin,
+    search_step,
+    stacked,
+    without_fusion_barriers,
+)
 
 # Contact codes counted one by one in the running statistics: every scene's codes
 # lie in -4..4 (StickInCircle: -1, 0, 1, 2; the wall scenes add -3, 3). A code
@@ -145,6 +153,12 @@ def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, s
     lanes wait for it (or all of them do): a lane idles a turn or two rather
     than every lane paying for it every turn.
     """
+    with without_fusion_barriers():
+        return _run_block(plan, scene, states0, carry, start, steps)
+
+
+def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, steps: Any):
+    """``run_block``'s loop, traced without fusion barriers (``jaxbill._engine.step.cos_sin``)."""
     width = states0.shape[0]
     constants = jax.vmap(lambda s: scene.orbit_constants(components(s)))(states0)
     drift = jax.vmap(lambda s0, s: energy_drift(scene, s0)(s))

@@ -33,7 +33,14 @@ import jax
 import jax.numpy as jnp
 
 from jaxbill._engine.lanes import CONTACT_CODES, Carry, fresh_carry
-from jaxbill._engine.step import begin_flight, end_and_begin, end_flight_tangent, search_step, where
+from jaxbill._engine.step import (
+    begin_flight,
+    end_and_begin,
+    end_flight_tangent,
+    search_step,
+    where,
+    without_fusion_barriers,
+)
 
 # Orbits per kernel program. Measured by a prototype on an H100 (float64, the
 # spinning stick): 32 lanes on one warp were fastest; 64 on 2 warps reached
@@ -177,7 +184,8 @@ def _call(scene, states0, carry: Carry, steps, tangent, block: int, interpret: b
         interpret=interpret,
         compiler_params=compiler_params,
     )
-    out = kernel(*arguments)
+    with without_fusion_barriers():
+        out = kernel(*arguments)
     carry = Carry(out[0][:size].T, out[1], out[2], out[3][: len(CONTACT_CODES) + 1].T)
     if tangent is None:
         return carry

@@ -37,6 +37,8 @@ Two ways to run these pieces share them unchanged:
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 from typing import Any, NamedTuple
 
 import jax
@@ -59,6 +61,45 @@ def components(state: jax.Array) -> tuple:
 def stacked(parts: tuple) -> jax.Array:
     """A state ``(..., S)`` from its components (the inverse of ``components``)."""
     return jnp.stack(parts, axis=-1)
+
+
+_FUSION_BARRIERS = contextvars.ContextVar("jaxbill_fusion_barriers", default=True)
+
+
+@contextlib.contextmanager
+def without_fusion_barriers():
+    """Trace scene code in which ``cos_sin`` adds no conditional: the lane drivers.
+
+    A Pallas kernel is one fusion already, and Triton lowers no conditional over
+    a block of lanes; the XLA lane state machine measured slower with them
+    (``benchmarks/bench_drivers.py``: walls 0.5x), so only ``advance`` (single
+    orbits, lockstep batches, tangents) keeps them.
+    """
+    token = _FUSION_BARRIERS.set(False)
+    try:
+        yield
+    finally:
+        _FUSION_BARRIERS.reset(token)
+
+
+def cos_sin(phi, gate):
+    """``(cos phi, sin phi)``, computed once however many values use them.
+
+    XLA:CPU copies an elementwise producer into every fusion that consumes it,
+    and a root step's gaps and slopes are four fusions: ``cos`` and ``sin``
+    were evaluated four times per step, the larger part of a batch's root step
+    (``benchmarks/bench_drivers.py``: 2.3x on a batch of spinning sticks). A
+    conditional is a boundary no fusion crosses, so they are computed inside
+    one. Its predicate ``gate`` must be true and must not be a compile-time
+    constant, or XLA removes the conditional: the scenes pass a test of one of
+    their own parameters (``R > 0``), which ``jit`` sees as an argument. Under
+    ``vmap`` over scene parameters the conditional becomes a select (both
+    branches computed): the same values, no barrier. Only XLA:CPU gets it;
+    see ``without_fusion_barriers`` for the drivers that do without.
+    """
+    if not _FUSION_BARRIERS.get() or jax.default_backend() != "cpu":
+        return jnp.cos(phi), jnp.sin(phi)
+    return jax.lax.cond(gate, lambda p: (jnp.cos(p), jnp.sin(p)), lambda p: (jnp.ones_like(p), jnp.zeros_like(p)), phi)
 
 
 def where(condition, if_true: tuple, if_false: tuple) -> tuple:

@@ -24,7 +24,7 @@ import numpy as np
 from jaxbill._analysis.chaos import circle_shell_candidates
 from jaxbill._check.checker import ColumnFlight
 from jaxbill._engine.first_root import RootBounds, first_smallest
-from jaxbill._engine.step import components, stacked
+from jaxbill._engine.step import components, cos_sin, stacked
 from jaxbill._engine.validation import (
     broadcast_parameters,
     check_parameter,
@@ -225,8 +225,7 @@ class StickInCircle(eqx.Module):
         """Both ends' gaps ``R^2 - |P_k|^2`` and their time derivatives after a flight of ``t`` (2-tuples)."""
         x, y, alpha, vx, vy, omega = state
         cx, cy = x + vx * t, y + vy * t
-        phi = alpha + omega * t
-        cu, su = jnp.cos(phi), jnp.sin(phi)
+        cu, su = cos_sin(alpha + omega * t, self.R > 0.0)
         centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
         centre_slope = -2.0 * (cx * vx + cy * vy)
         along = 2.0 * self.ell * (cx * cu + cy * su)

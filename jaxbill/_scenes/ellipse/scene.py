@@ -56,7 +56,7 @@ import numpy as np
 from jaxbill._analysis.chaos import table_shell_candidates
 from jaxbill._check.checker import ColumnFlight
 from jaxbill._engine.first_root import RootBounds, first_smallest
-from jaxbill._engine.step import components, searched_contact_time, stacked
+from jaxbill._engine.step import components, cos_sin, searched_contact_time, stacked
 from jaxbill._engine.validation import (
     broadcast_parameters,
     check_parameter,
@@ -265,8 +265,7 @@ class StickInEllipse(eqx.Module):
     def gaps_along_flight(self, state: tuple, t: jax.Array):
         """Both ends' gaps ``ab - P_k^T D P_k`` (area) and their time derivatives after a flight of ``t`` (2-tuples)."""
         x, y, alpha, vx, vy, omega = state
-        phi = alpha + omega * t
-        cu, su = jnp.cos(phi), jnp.sin(phi)
+        cu, su = cos_sin(alpha + omega * t, self.a > 0.0)
         table = self.table
         gaps, slopes = [], []
         for sign in (1.0, -1.0):

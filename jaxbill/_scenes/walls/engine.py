@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbill._engine.first_root import RootBounds, first_smallest, select
-from jaxbill._engine.step import where
+from jaxbill._engine.step import cos_sin, where
 from jaxbill._engine.validation import (
     broadcast_parameters,
     check_parameter,
@@ -115,12 +115,13 @@ def batch_chunk(kind: str) -> int:
 # -- the vertical profile of the ends ------------------------------------------
 
 
-def turn(spin2: jax.Array, t: jax.Array):
-    """``cos(W t)`` and ``sin(W t) / W`` from ``W^2``, smooth through ``W = 0``."""
+def turn(spin2: jax.Array, t: jax.Array, h):
+    """``cos(W t)`` and ``sin(W t) / W`` from ``W^2``, smooth through ``W = 0`` (``h``: see ``cos_sin``)."""
     turning = spin2 > 0.0
     spin = jnp.sqrt(jnp.where(turning, spin2, 1.0))
-    cos = jnp.where(turning, jnp.cos(spin * t), 1.0)
-    sinc = jnp.where(turning, jnp.sin(spin * t) / spin, t)
+    cos_spin, sin_spin = cos_sin(spin * t, h > 0.0)
+    cos = jnp.where(turning, cos_spin, 1.0)
+    sinc = jnp.where(turning, sin_spin / spin, t)
     return cos, sinc
 
 
@@ -130,7 +131,7 @@ def gaps_along_flight(profile, t):
     ``profile = (z0, vz, A, D, W^2, ell, h)``; see the module docstring.
     """
     z0, vz, along, turn_rate, spin2, ell, h = profile
-    cos, sinc = turn(spin2, t)
+    cos, sinc = turn(spin2, t, h)
     reach = ell * (along * cos + turn_rate * sinc)
     reach_slope = ell * (turn_rate * cos - along * spin2 * sinc)
     z = z0 + vz * t
