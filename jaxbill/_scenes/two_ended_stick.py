@@ -4,11 +4,13 @@ A stick's ends are ``P1 = c + ell u`` (gap index 0, contact ``+1``) and
 ``P2 = c - ell u`` (index 1, contact ``-1``), ``u = (cos alpha, sin alpha)``.
 The scenes (``StickInCircle``, ``StickInEllipse``) differ in their table, hence
 in their gaps, approach speeds and impulse; these functions take those as
-arguments. States are components ``(x, y, alpha, vx, vy, omega)``.
+arguments; their impulse is one and the same reflection (``reflect``), about
+their own wall normal. States are components ``(x, y, alpha, vx, vy, omega)``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import jax.numpy as jnp
@@ -22,6 +24,10 @@ END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
 # A second end within this many ulps of the gap scale of the wall at a contact
 # touches it at the same instant (a corner): both impulses are applied in one event.
 CORNER_ULPS = 64.0
+
+# An impulse's normal is scaled so that its squared norm sits near this value (see
+# ``StickInCircle.kick``): mid-binade, with a reciprocal of no short binary period.
+KICK_NORMAL_SQUARED = math.pi / 2
 
 
 def direction(point: bool, alpha):
@@ -73,3 +79,25 @@ def resolve_two_ends(
     kicked = where(corner & still_approaching, kick(kicked, select(END_SIGNS, second), u), kicked)
     contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
     return kicked, contact
+
+
+def reflect(state: tuple, arm, u: tuple, normal: tuple, mass_ratio) -> tuple:
+    """The elastic frictionless impulse at the contact point ``c + arm u``: a mass-metric reflection.
+
+    ``normal = (nx, ny)`` is the wall's outward normal at the contact,
+    unnormalised (any positive multiple gives the same impulse; the scenes
+    scale it so that ``|N|^2`` sits near ``KICK_NORMAL_SQUARED``);
+    ``mass_ratio = M / I`` (0 where the spin is never kicked). With
+    ``s = arm (u x N)``, ``v_n = v . N + omega s`` and
+    ``w = 2 v_n / (|N|^2 + (M/I) s^2)``: ``v' = v - w N``,
+    ``omega' = omega - w (M/I) s``. The energy is conserved exactly for
+    whatever ``N`` rounding produced. Every table's impulse is this one: the
+    circle's and the ellipse's differ only in ``N``.
+    """
+    x, y, alpha, vx, vy, omega = state
+    ux, uy = u
+    nx, ny = normal
+    s = arm * (ux * ny - uy * nx)
+    v_n = vx * nx + vy * ny + omega * s
+    change = 2.0 * v_n / (nx * nx + ny * ny + mass_ratio * (s * s))
+    return x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * mass_ratio) * s

@@ -76,11 +76,6 @@ _BATCH_CHUNK = {"rotor": 64, "static": 256, "point": 256}
 
 KINDS = ("rotor", "static", "point")
 
-# The impulse's normal is scaled so that its squared norm sits near this value
-# (mid-binade, with a reciprocal of no short binary period): see
-# ``StickInCircle.kick``, whose scaling this one equals for ``a = b``.
-_KICK_DENOMINATOR = math.pi / 2
-
 
 def _checked_parameters(a, b, ell, mass, inertia):
     """Validate concrete parameters; return them broadcast to one shape, and the scene kind."""
@@ -400,24 +395,18 @@ class StickInEllipse(eqx.Module):
     def kick(self, state: tuple, end, u: tuple) -> tuple:
         """Elastic frictionless impulse at end ``end`` (+1 or -1) on the wall: the mass-metric reflection (components).
 
-        ``N = D P`` scaled by ``sqrt(pi/2 / (ab))`` (any positive factor gives
-        the same impulse; this one keeps ``|N|^2`` near ``pi/2``, and equals
-        ``StickInCircle.kick``'s for ``a = b``), ``s = end ell (u x N)``,
-        ``v_n = v . N + omega s``, ``w = 2 v_n / (|N|^2 + (M/I) s^2)``:
-        ``v' = v - w N``, ``omega' = omega - w (M/I) s``. The energy is
-        conserved exactly for whatever ``N`` rounding produced.
+        ``stick.reflect`` about ``N = D P`` (the table's ``-grad g / 2``) scaled
+        by ``sqrt(pi/2 / (ab))``: any positive factor gives the same impulse;
+        this one keeps ``|N|^2`` near ``pi/2``, and equals
+        ``StickInCircle.kick``'s for ``a = b``.
         """
-        x, y, alpha, vx, vy, omega = state
+        x, y = state[0], state[1]
         ux, uy = u
         arm = end * self.ell
         p, q = self.table.metric
-        scale = math.sqrt(_KICK_DENOMINATOR) / jnp.sqrt(self.gap_scale)
-        nx, ny = (scale * p) * (x + arm * ux), (scale * q) * (y + arm * uy)
-        s = arm * (ux * ny - uy * nx)
-        v_n = vx * nx + vy * ny + omega * s
-        ratio = self.mass * self.inverse_inertia
-        change = 2.0 * v_n / (nx * nx + ny * ny + ratio * (s * s))
-        return x, y, alpha, vx - change * nx, vy - change * ny, omega - (change * ratio) * s
+        scale = math.sqrt(stick.KICK_NORMAL_SQUARED) / jnp.sqrt(self.gap_scale)
+        normal = (scale * p) * (x + arm * ux), (scale * q) * (y + arm * uy)
+        return stick.reflect(state, arm, u, normal, self.mass * self.inverse_inertia)
 
     # -- collision times --------------------------------------------------------
 
