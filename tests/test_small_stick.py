@@ -94,9 +94,9 @@ def test_ensemble_estimate_matches_the_reduced_map_in_the_circle():
 
 
 def test_point_billiard_flux_in_a_circle():
-    h, rate = ss.point_billiard_flux(2.0, 2.0, n_orbits=50, n_collisions=50)
+    h, rate = ss.point_billiard_flux(2.0, 2.0, n_orbits=4000, n_collisions=5)
     np.testing.assert_allclose(h, 1 / 4.0, rtol=1e-9)  # sin(phi) / (2 R sin(phi)) for every chord
-    assert rate == pytest.approx(2.0 / (math.pi * 2.0), rel=0.05)  # P / (pi A), Santalo
+    assert rate == pytest.approx(2.0 / (math.pi * 2.0), rel=0.06)  # P / (pi A), Santalo
     assert ss.visit_rate(2.0, 2.0) == pytest.approx((math.pi / 4) / math.pi, rel=1e-12)
 
 
