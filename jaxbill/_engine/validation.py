@@ -13,6 +13,7 @@ import operator
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.core import Tracer
 
 # Relative tolerance on a contact gap (in units of ``Scene.gap_scale``): an end
 # this far outside a wall is "through the wall"; this close to it, "on the wall".
@@ -27,7 +28,7 @@ MAX_COUNT = 2**63 - 1
 
 
 def is_concrete(x) -> bool:
-    return not isinstance(x, jax.core.Tracer)
+    return not isinstance(x, Tracer)
 
 
 def check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:

@@ -22,6 +22,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import jax
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxbill._engine.validation import WALL_TOLERANCE, as_states
 
@@ -39,6 +40,7 @@ __all__ = [
     "HasCheckerFlight",
     "CheckerFlight",
     "HasPeriodicSymmetry",
+    "HasAngularMomentum",
     "PERIODIC_SYMMETRIES",
     "SamplesStates",
     "SectionChart",
@@ -91,28 +93,32 @@ class Scene(Protocol):
     # How a collision is computed (see jaxbill._engine.step): a scene whose gaps are
     # transcendental in time answers root_search and gaps_along_flight, one
     # whose gaps are polynomials answers closed_form_contact; both collide_at.
+    # These take a state as its components (a tuple of S scalars, or of
+    # equal-shaped arrays, one element per orbit) and return tuples, so that
+    # they run inside a Pallas kernel too. Their arguments are positional
+    # (``/``): each scene names them for what they are to it.
 
     @property
     def searches_for_roots(self) -> bool:
         """Static: the contact time needs the safe-step root search (else a closed form)."""
         ...
 
-    def root_search(self, state: jax.Array) -> tuple[Any, Any]:
+    def root_search(self, state: tuple, /) -> tuple[Any, Any]:
         """``(profile, RootBounds)``: what the gaps depend on along the flight, and the search's bounds."""
         ...
 
-    def gaps_along_flight(self, profile: Any, t: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """``(gap, slope)``, each ``(K,)``: the gaps and their time derivatives after a flight of ``t``."""
+    def gaps_along_flight(self, profile: Any, t: jax.Array, /) -> tuple[tuple, tuple]:
+        """``(gaps, slopes)``, two K-tuples: the gaps and their time derivatives after a flight of ``t``."""
         ...
 
-    def closed_form_contact(self, state: jax.Array, constants: Any) -> tuple[jax.Array, jax.Array]:
+    def closed_form_contact(self, state: tuple, constants: Any, /) -> tuple[jax.Array, jax.Array]:
         """``(t, index)``: the contact time (``inf``: never) and which gap closes."""
         ...
 
-    def collide_at(
-        self, state: jax.Array, t: jax.Array, index: jax.Array, constants: Any
-    ) -> tuple[jax.Array, jax.Array]:
-        """``(state, contact)``: the flight to ``t`` and the impulse(s) of the contact in gap ``index``."""
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: Any, /) -> tuple[tuple, jax.Array]:
+        """``(state, contact)``: the flight to ``t`` and the impulse(s) of the contact in gap ``index``
+        (the new state as components)."""
+        ...
 
     def gaps(self, state: jax.Array) -> jax.Array:
         """Contact gaps ``(..., K)``, >= 0 inside."""
@@ -124,6 +130,10 @@ class Scene(Protocol):
 
     def energy(self, state: jax.Array) -> jax.Array:
         """Kinetic energy ``(...)``."""
+        ...
+
+    def end_points(self, state: jax.Array, /) -> jax.Array:
+        """Positions of the ends ``[P1, P2]``, shape ``(..., 2, D)`` (``D`` = 2 or 3)."""
         ...
 
 
@@ -200,7 +210,9 @@ class HasSection(Protocol):
         area-preserving one). Traceable."""
         ...
 
-    def section_state(self, point: jax.Array, **invariants) -> jax.Array:
+    # ``*args: Any, **invariants: Any`` stands for "the scene's own invariant keywords":
+    # each scene names those its section holds fixed (energy=, spin=, ...).
+    def section_state(self, point: jax.Array, *args: Any, **invariants: Any) -> jax.Array:
         """The state ``(..., S)`` just after a collision at the area-preserving section's
         ``point (..., 2)`` with the given invariants (NaN where unreachable)."""
         ...
@@ -256,6 +268,16 @@ class HasPeriodicSymmetry(Protocol):
     periodic_symmetry: ClassVar[str]
 
 
+@runtime_checkable
+class HasAngularMomentum(Protocol):
+    """A scene with a conserved angular momentum (``StickInCircle`` about the origin, ``StickBetweenWalls3D``
+    ``L_z``, ``StickInEllipse``'s only when it is a circle)."""
+
+    def angular_momentum(self, state: jax.Array, /) -> jax.Array:
+        """The angular momentum ``(...)`` of states ``(..., S)``."""
+        ...
+
+
 class SamplesStates(Protocol):
     """A scene that can draw valid starts with the Liouville measure on an energy shell."""
 
@@ -282,28 +304,28 @@ def component(state, i: int):
     return state[i] if isinstance(state, tuple) else state[..., i]
 
 
-def _states(scene: Scene, state) -> jax.Array:
+def _states(scene: Scene, state: ArrayLike) -> jax.Array:
     """``state`` as an array ``(..., S)``; ValueError for another last axis or a non-real dtype (static)."""
     return as_states(scene, state, "state")
 
 
-def energy(scene: Scene, state: jax.Array) -> jax.Array:
+def energy(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float[Array, "*batch"]:
     """Kinetic energy of ``state`` (shape ``(..., S)``) in ``scene``: translation plus rotation."""
     return scene.energy(_states(scene, state))
 
 
-def angular_momentum(scene: Scene, state: jax.Array) -> jax.Array:
+def angular_momentum(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float[Array, "*batch"]:
     """The scene's angular momentum (``StickInCircle``: about the origin; ``StickBetweenWalls3D``: ``L_z``).
 
     Raises:
         TypeError: for a scene without one (``StickBetweenWalls2D``: the walls
             exert torques; its conserved momentum is ``M vx``).
     """
-    if not hasattr(scene, "angular_momentum"):
+    if not isinstance(scene, HasAngularMomentum):
         raise TypeError(f"{type(scene).__name__} has no conserved angular momentum")
     return scene.angular_momentum(_states(scene, state))
 
 
-def end_points(scene: Scene, state: jax.Array) -> jax.Array:
+def end_points(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float[Array, "*batch 2 D"]:
     """Positions of the ends ``[P1, P2]``, shape ``(..., 2, D)`` (``D`` = 2 or 3)."""
     return scene.end_points(_states(scene, state))
