@@ -41,6 +41,7 @@ import time
 from typing import NamedTuple
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -514,14 +515,8 @@ class Explorer:
             orb = self._run_chunk(self.scene, batch)
             points = np.asarray(self._section_points(self.scene, orb.state, orb.contact))
             keep = min(self.chunk, collisions - done)
-            yield (
-                Orbit(
-                    t=np.asarray(orb.t[:count]),
-                    contact=np.asarray(orb.contact[:count]),
-                    state=np.asarray(orb.state[:count]),
-                ),
-                points[:count, :keep],
-            )
+            # the first ``count`` orbits, on the host (an Orbit of numpy arrays, for drawing)
+            yield jax.device_get(jax.tree_util.tree_map(lambda a: a[:count], orb)), points[:count, :keep]
             done += keep
             batch = np.asarray(orb.state[:, -1])
             if not np.all(np.isfinite(batch)):

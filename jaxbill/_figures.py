@@ -80,6 +80,7 @@ import os
 import sys
 import time
 
+import jax
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -569,9 +570,7 @@ def _ellipse_figures(settings: Settings, save, bar) -> list:
         panels.append((label, points))
     fig = Figure(figsize=(15, 4.8), layout="constrained")
     ax_orbit, *ax_sections = fig.subplots(1, 3)
-    one = type(trajectory)(
-        t=np.asarray(trajectory.t), contact=np.asarray(trajectory.contact), state=np.asarray(trajectory.state)
-    )
+    one = jax.device_get(trajectory)  # an Orbit of numpy arrays
     draw_ellipse_orbit(ax_orbit, stick, state0, one, "tab:blue")
     ax_orbit.set_title(
         f"stick, a = {a:g}, b = {b:g}, ell = {ELLIPSE_ELL:g}: {settings.ellipse_trajectory_collisions} collisions"

@@ -212,7 +212,7 @@ class HasSection(Protocol):
 
     # ``*args: Any, **invariants: Any`` stands for "the scene's own invariant keywords":
     # each scene names those its section holds fixed (energy=, spin=, ...).
-    def section_state(self, point: jax.Array, *args: Any, **invariants: Any) -> jax.Array:
+    def section_state(self, point: ArrayLike, *args: Any, **invariants: Any) -> jax.Array:
         """The state ``(..., S)`` just after a collision at the area-preserving section's
         ``point (..., 2)`` with the given invariants (NaN where unreachable)."""
         ...

@@ -20,6 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike
 
 from jaxbill._analysis.chaos import circle_shell_candidates
 from jaxbill._check.checker import ColumnFlight
@@ -346,7 +347,7 @@ class StickInCircle(eqx.Module):
 
     # -- invariants ---------------------------------------------------------------
 
-    def energy(self, state: jax.Array) -> jax.Array:
+    def energy(self, state: jax.Array | np.ndarray) -> jax.Array:
         """``M |v|^2 / 2 + I omega^2 / 2`` (the lens drops the spin term: omega = 0).
 
         ``state``: an array ``(..., 6)`` or its components (``jaxbill._scenes.protocols.component``).
@@ -357,7 +358,7 @@ class StickInCircle(eqx.Module):
             return e
         return e + stick.spin_term(self.kind == "circle", omega, 0.5 * self.inertia * omega**2)
 
-    def angular_momentum(self, state: jax.Array) -> jax.Array:
+    def angular_momentum(self, state: jax.Array | np.ndarray) -> jax.Array:
         """Total angular momentum about the origin, ``M (x vy - y vx) + I omega``.
 
         Conserved: the wall force is radial. For the static lens (``I = inf``)
@@ -405,11 +406,11 @@ class StickInCircle(eqx.Module):
         functions = {"reduced": reduced_section, "paper": paper_section, "birkhoff": birkhoff_section}
         return functions[chosen_section(self, name)](self, states)
 
-    def section_state(self, point: jax.Array, energy=0.5, angular_momentum=0.0) -> jax.Array:
+    def section_state(self, point: ArrayLike, energy=0.5, angular_momentum=0.0) -> jax.Array:
         """The state ``(..., 6)`` just after a collision at the reduced section's ``point = (s, p)``,
         shape ``(..., 2)``, at energy ``E`` and angular momentum ``L`` (``jb.section_state``)."""
-        point = jnp.asarray(point, dtype=jnp.float64)
-        return section_state(self, point[..., 0], point[..., 1], energy, angular_momentum)
+        xy = jnp.asarray(point, dtype=jnp.float64)
+        return section_state(self, xy[..., 0], xy[..., 1], energy, angular_momentum)
 
     @property
     def section_chart(self) -> SectionChart:

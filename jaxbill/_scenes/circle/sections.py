@@ -96,12 +96,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxbill._engine.validation import MAX_STORED_COUNT, as_states, check_count, require_x64
 from jaxbill._scenes.protocols import SectionChart, end_points
 
 
-def paper_section(scene, states: jax.Array) -> jax.Array:
+def paper_section(scene, states: Float[ArrayLike, "*batch 6"]) -> Float[Array, "*batch 2"]:
     """The paper's projected section: ``[L_z, phi_c]`` with ``phi_c`` in units of ``pi``.
 
     ``L_z = y p_x - x p_y`` (units mass * length^2 / time; the paper's sign,
@@ -139,7 +140,7 @@ def half_corner_angle(scene) -> jax.Array:
     return jnp.arccos(scene.ell / scene.R)
 
 
-def wall_length(scene) -> jax.Array:
+def wall_length(scene) -> Float[Array, "*scenes"]:
     """Length of the section's ``s`` axis: ``4 R beta_max`` for a stick, ``2 pi R`` for the circle."""
     if scene.kind == "circle":
         return 2.0 * jnp.pi * scene.R
@@ -173,7 +174,7 @@ def _wall_coordinate(scene, states: jax.Array):
     return s, phi
 
 
-def reduced_section(scene, states: jax.Array) -> jax.Array:
+def reduced_section(scene, states: Float[ArrayLike, "*batch 6"]) -> Float[Array, "*batch 2"]:
     """The section of the symmetry-reduced system: ``[s, p]`` (see the module docstring).
 
     ``s`` is the arc length of the contact along the lens-shaped wall in the
@@ -198,7 +199,7 @@ def reduced_section(scene, states: jax.Array) -> jax.Array:
     return jnp.stack([s, p], axis=-1)
 
 
-def birkhoff_section(scene, states: jax.Array) -> jax.Array:
+def birkhoff_section(scene, states: Float[ArrayLike, "*batch 6"]) -> Float[Array, "*batch 2"]:
     """Birkhoff coordinates ``[s, sin chi]`` of the centre on a fixed wall.
 
     For the static lens (``inertia = inf``): ``s`` the arc length along the
@@ -218,7 +219,9 @@ def birkhoff_section(scene, states: jax.Array) -> jax.Array:
     return reduced_section(scene, states)
 
 
-def reduced_section_bounds(scene, s: jax.Array, energy, angular_momentum) -> jax.Array:
+def reduced_section_bounds(
+    scene, s: Float[ArrayLike, "*batch"], energy: ArrayLike, angular_momentum: ArrayLike
+) -> Float[Array, "*batch 2"]:
     """The reachable range ``[p_min, p_max]`` of the reduced section at ``s`` for given ``E``, ``L``.
 
     At a contact at ``s`` the velocity ``V = (sqrt(M) v, sqrt(I) omega)`` has
@@ -257,12 +260,12 @@ def _beta_from_s(scene, s: jax.Array):
 
 def section_state(
     scene,
-    s: jax.Array,
-    p: jax.Array,
-    energy=0.5,
-    angular_momentum=0.0,
-    rotation=0.0,
-) -> jax.Array:
+    s: Float[ArrayLike, "*#batch"],
+    p: Float[ArrayLike, "*#batch"],
+    energy: ArrayLike = 0.5,
+    angular_momentum: ArrayLike = 0.0,
+    rotation: ArrayLike = 0.0,
+) -> Float[Array, "*batch 6"]:
     """The state just after a collision at the section point ``(s, p)``: the inverse of ``reduced_section``.
 
     Args:
@@ -336,7 +339,9 @@ def section_state(
     return jnp.where(jnp.isfinite(v_n)[..., None], state, jnp.nan)
 
 
-def incoming_states(states: jax.Array, state0: jax.Array) -> jax.Array:
+def incoming_states(
+    states: Float[ArrayLike, "*batch n 6"], state0: Float[ArrayLike, "*batch 6"]
+) -> Float[Array, "*batch n 6"]:
     """States just *before* each collision of an orbit, from the states just after.
 
     The impulse changes only velocities, and free flight keeps them, so the
@@ -366,8 +371,8 @@ def _halton(index: np.ndarray, base: int) -> np.ndarray:
 
 
 def section_seeds(
-    scene, count: int, energy=0.5, angular_momentum=0.0, *, half: bool = True, offset: int = 1
-) -> jax.Array:
+    scene, count: int, energy: float = 0.5, angular_momentum: float = 0.0, *, half: bool = True, offset: int = 1
+) -> Float[Array, "count 6"]:
     """``count`` start states spread evenly over the reachable part of the ``(s, p)`` section.
 
     The points ``(s, p)`` are a Halton sequence (bases 2 and 3) over

@@ -52,6 +52,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike
 
 from jaxbill._analysis.chaos import table_shell_candidates
 from jaxbill._check.checker import ColumnFlight
@@ -422,7 +423,7 @@ class StickInEllipse(eqx.Module):
 
     # -- invariants and watched quantities ----------------------------------------
 
-    def energy(self, state: jax.Array) -> jax.Array:
+    def energy(self, state: jax.Array | np.ndarray) -> jax.Array:
         """``M |v|^2 / 2 + I omega^2 / 2`` (the static stick drops the spin term: omega = 0)."""
         vx, vy, omega = (component(state, i) for i in (3, 4, 5))
         e = 0.5 * self.mass * (vx**2 + vy**2)
@@ -430,7 +431,7 @@ class StickInEllipse(eqx.Module):
             return e
         return e + stick.spin_term(self.kind == "point", omega, 0.5 * self.inertia * omega**2)
 
-    def angular_momentum(self, state: jax.Array) -> jax.Array:
+    def angular_momentum(self, state: jax.Array | np.ndarray) -> jax.Array:
         """Angular momentum about the table's centre, ``M (x vy - y vx) + I omega``, shape ``(...)``.
 
         Conserved only for ``a = b``: elsewhere the wall's normal misses the
@@ -501,12 +502,12 @@ class StickInEllipse(eqx.Module):
         """
         return ellipse_section(self, states, contacts, chosen_section(self, name))
 
-    def section_state(self, point: jax.Array, energy=0.5, arm_angle=0.0, spin=0.0) -> jax.Array:
+    def section_state(self, point: ArrayLike, energy=0.5, arm_angle=0.0, spin=0.0) -> jax.Array:
         """The state ``(..., 6)`` just after end P1 hits the wall at the Birkhoff section's ``point = (s, p)``,
         shape ``(..., 2)``: energy ``E``, the stick at ``arm_angle`` (radians) from the outward normal, spin
         ``omega``; NaN where none exists (``jaxbill._scenes.ellipse.sections.ellipse_section_state``)."""
-        point = jnp.asarray(point, dtype=jnp.float64)
-        return ellipse_section_state(self, point[..., 0], point[..., 1], energy, arm_angle, spin)
+        xy = jnp.asarray(point, dtype=jnp.float64)
+        return ellipse_section_state(self, xy[..., 0], xy[..., 1], energy, arm_angle, spin)
 
     @property
     def section_chart(self) -> SectionChart:

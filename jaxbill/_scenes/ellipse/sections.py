@@ -40,6 +40,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike
 
 from jaxbill._engine.validation import as_states
 from jaxbill._scenes.circle.sections import _halton
@@ -71,7 +72,7 @@ def _arc_within_quarter(scene, r: jax.Array) -> jax.Array:
     return jnp.sum(jnp.asarray(_WEIGHTS) * _speed_along(scene, taus), axis=-1) * half[..., 0]
 
 
-def arc_length(scene, t: jax.Array) -> jax.Array:
+def arc_length(scene, t: ArrayLike) -> jax.Array:
     """Arc length ``s(t)`` (length) from ``(a, 0)`` anticlockwise to parameter angle ``t`` (radians, any shape).
 
     Summed by quarter turns: ``|P'|`` has period ``pi`` and is symmetric about

@@ -25,6 +25,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike
 
 from jaxbill._check.walls import ReducedWallsFlight
 from jaxbill._engine.step import components, stacked
@@ -212,11 +213,11 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
             raise ValueError("contacts: the floor section needs the collisions' contact codes (Orbit.contact)")
         return floor_section(self, states, contacts)
 
-    def section_state(self, point: jax.Array, energy=0.5, spin=0.0) -> jax.Array:
+    def section_state(self, point: ArrayLike, energy=0.5, spin=0.0) -> jax.Array:
         """The state just after a floor collision at ``point = (theta, p)``, shape ``(..., 2)``, at the
         energy ``E'`` of the dynamical part (``spin`` must be 0) (``jb.floor_state``)."""
-        point = jnp.asarray(point, dtype=jnp.float64)
-        return floor_state(self, point[..., 0], point[..., 1], energy, spin)
+        xy = jnp.asarray(point, dtype=jnp.float64)
+        return floor_state(self, xy[..., 0], xy[..., 1], energy, spin)
 
     @property
     def section_chart(self) -> SectionChart:

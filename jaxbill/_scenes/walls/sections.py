@@ -524,10 +524,10 @@ def orbits_with_twin_distances(scene, states0, n: int, delta: float = 1e-11):
     """Run orbits and their twins in one batch: ``(orbit of the originals, wall_twin_distances)``."""
     states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
     both = _orbit(scene, np.concatenate([states0, wall_twin_states(scene, states0, delta)]), n)
-    t, contact, state = (np.asarray(a) for a in (both.t, both.contact, both.state))
+    both = jax.device_get(both)  # an Orbit of numpy arrays
     count = len(states0)
-    orb = type(both)(t=t[:count], contact=contact[:count], state=state[:count])
-    return orb, wall_twin_distances(scene, state[:count], state[count:], states0)
+    orb = jax.tree_util.tree_map(lambda a: a[:count], both)
+    return orb, wall_twin_distances(scene, both.state[:count], both.state[count:], states0)
 
 
 def wall_twin_divergence(scene, states0, n: int, delta: float = 1e-11) -> np.ndarray:
