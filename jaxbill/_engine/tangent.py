@@ -130,8 +130,11 @@ def to_state_space(scene: Scene, state: jax.Array, coefficients: jax.Array) -> j
     """Tangent vectors ``(S, m)`` at ``state`` from their coordinates ``(k, m)`` in the dynamical frame."""
     indices = getattr(scene, "dynamical_indices", None)
     if indices is not None:
-        idx = jnp.asarray(indices)
-        return jnp.zeros((scene.state_size, coefficients.shape[1]), coefficients.dtype).at[idx].set(coefficients)
+        # Rows by static position, not a scatter: XLA:CPU runs a vmapped scatter
+        # or gather as a loop of its own, which cost more than a lens collision.
+        row_of = {index: row for row, index in enumerate(indices)}
+        zero = jnp.zeros(coefficients.shape[1:], coefficients.dtype)
+        return jnp.stack([coefficients[row_of[i]] if i in row_of else zero for i in range(scene.state_size)])
     return cast(_MovingFrame, scene).dynamical_frame(state) @ coefficients
 
 
@@ -143,7 +146,7 @@ def to_dynamical(scene: Scene, state: jax.Array, vectors: jax.Array) -> jax.Arra
     """
     indices = getattr(scene, "dynamical_indices", None)
     if indices is not None:
-        return vectors[jnp.asarray(indices)]
+        return jnp.stack([vectors[i] for i in indices])  # static rows (see to_state_space)
     return cast(_MovingFrame, scene).dynamical_frame(state).T @ vectors
 
 
