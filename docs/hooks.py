@@ -84,6 +84,11 @@ API_PAGES = {
             "fli_map",
             "FastLyapunovIndicator",
             "Megno",
+            "ensemble_lyapunov",
+            "EnsembleLyapunov",
+            "torus_frequencies",
+            "TorusFrequencies",
+            "resonances",
         ],
     ),
     "api/periodic.md": (

@@ -18,6 +18,7 @@ from jaxbill._engine.backend import backend_settings, configure
 configure()
 jax.config.update("jax_enable_x64", True)
 
+from jaxbill._analysis.arnold_web import TorusFrequencies, resonances, torus_frequencies  # noqa: E402
 from jaxbill._analysis.chaos import (  # noqa: E402
     FiniteTimeLyapunov,
     chaos_threshold,
@@ -41,6 +42,7 @@ from jaxbill._analysis.section_measures import (  # noqa: E402
     is_chaotic,
     twin_divergence,
 )
+from jaxbill._analysis.small_stick import EnsembleLyapunov, ensemble_lyapunov  # noqa: E402
 from jaxbill._check.checker import CheckFlag, CheckReport, CheckResult, check  # noqa: E402
 from jaxbill._engine.collision import (  # noqa: E402
     Orbit,
@@ -135,6 +137,11 @@ __all__ = [
     "fli_map",
     "FastLyapunovIndicator",
     "Megno",
+    "ensemble_lyapunov",
+    "EnsembleLyapunov",
+    "torus_frequencies",
+    "TorusFrequencies",
+    "resonances",
     "find_periodic_orbit",
     "find_periodic_orbits",
     "continue_periodic_orbit",

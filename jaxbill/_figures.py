@@ -606,6 +606,30 @@ def _embed_2d(states2d) -> np.ndarray:
     return np.stack([x, zero, z, np.sin(th), zero, np.cos(th), vx, zero, vz, zero, om, zero], axis=-1)
 
 
+def _studies_figures(out_dir: str, quick: bool, bar) -> list:
+    """``small_stick_law.png`` and ``arnold_web.png`` from the studies' stored data (notebooks 09 and 10).
+
+    Both are drawn from ``notebooks/data/`` (the measurements take minutes to
+    tens of minutes: ``notebooks/data/make_*_data.py``); where a file is
+    missing (an install without the repository's notebooks) the figure is
+    skipped and the summary says so.
+    """
+    from jaxbill._analysis import arnold_web, small_stick
+
+    records = []
+    for name, data_file, draw in (
+        ("small_stick_law", small_stick.DATA_FILE, lambda: small_stick.small_stick_figure(out_dir)),
+        ("arnold_web", arnold_web.DATA_PATH, lambda: arnold_web.arnold_web_figure(out_dir, quick=quick)),
+    ):
+        t0 = time.perf_counter()
+        if data_file.exists():
+            records.append({"name": name, "file": os.path.basename(str(draw())), "seconds": time.perf_counter() - t0})
+        else:
+            records.append({"name": name, "file": None, "skipped": f"no stored data at {data_file}"})
+        bar.advance(name.replace("_", " "))
+    return records
+
+
 def make_figures(
     out_dir: str = "figures", *, quick: bool = False, progress: bool = True, settings: Settings | None = None
 ) -> dict:
@@ -621,7 +645,7 @@ def make_figures(
     if settings is None:
         settings = Settings.quick_settings() if quick else Settings()
     os.makedirs(out_dir, exist_ok=True)
-    steps = 11
+    steps = 13
     bar = Progress(steps, progress)
     bar.show("starting (compiling the collision map)")
     started = time.perf_counter()
@@ -836,6 +860,7 @@ def make_figures(
 
     walls_figures = _walls_figures(settings, save, bar)
     ellipse_figures = _ellipse_figures(settings, save, bar)
+    studies_figures = _studies_figures(out_dir, settings.quick, bar)
 
     all_panels = [p for f in figures for p in f["panels"]]
     summary = {
@@ -853,6 +878,7 @@ def make_figures(
         "figures": figures,
         "walls": walls_figures,
         "ellipse": ellipse_figures,
+        "studies": studies_figures,
         "walls_worst_energy_drift": max((p["energy_drift"] for f in walls_figures for p in f["panels"]), default=None),
         "walls_worst_momentum_drift": max(
             (p["momentum_drift"] for f in walls_figures for p in f["panels"]), default=None
@@ -931,4 +957,9 @@ def summary_text(summary: dict) -> str:
                 f"  {panel['label']:<34} {panel['orbits']:>4} orbits x {panel['collisions_per_orbit']} "
                 f"collisions, dE/E {panel['energy_drift']:.1e}"
             )
+    for figure in summary.get("studies", []):
+        if figure["file"] is None:
+            lines += ["", f"{figure['name']}: skipped ({figure['skipped']})"]
+        else:
+            lines += ["", f"{figure['file']}: drawn from the stored measurement ({figure['seconds']:.1f} s)"]
     return "\n".join(lines) + "\n"
