@@ -64,6 +64,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import pallas
 from jaxbill._engine.collision import _check_eagerly, _poison_if
@@ -100,12 +101,12 @@ class FastLyapunovIndicator(eqx.Module):
         per: ``"collision"`` or ``"time"``: the clock and tangent map used (static).
     """
 
-    value: jax.Array
-    log_norm: jax.Array
-    history: jax.Array
-    collisions: jax.Array
-    times: jax.Array
-    time: jax.Array
+    value: Float[Array, "*B"]
+    log_norm: Float[Array, "*B"]
+    history: Float[Array, "*B H"]
+    collisions: Int[Array, " H"]
+    times: Float[Array, "*B H"]
+    time: Float[Array, "*B"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
 
@@ -129,12 +130,12 @@ class Megno(eqx.Module):
         per: ``"collision"`` or ``"time"`` (static).
     """
 
-    value: jax.Array
-    instantaneous: jax.Array
-    history: jax.Array
-    collisions: jax.Array
-    times: jax.Array
-    time: jax.Array
+    value: Float[Array, "*B"]
+    instantaneous: Float[Array, "*B"]
+    history: Float[Array, "*B H"]
+    collisions: Int[Array, " H"]
+    times: Float[Array, "*B H"]
+    time: Float[Array, "*B"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
 
@@ -308,7 +309,15 @@ _ARGS_DOC = """
 """
 
 
-def fli(scene: Scene, states, n: int, *, per: str = "collision", tangent0=None, n_history: int = 100):
+def fli(
+    scene: Scene,
+    states: Float[ArrayLike, "*B S"],
+    n: int,
+    *,
+    per: str = "collision",
+    tangent0: Float[ArrayLike, "*#B S"] | None = None,
+    n_history: int = 100,
+) -> FastLyapunovIndicator:
     """The fast Lyapunov indicator (Froeschle, Lega, Gonczi 1997) of each orbit after ``n`` collisions.
 
     ``FLI = max_{k <= n} log|w_k|``: the running maximum of the log-length of
@@ -335,7 +344,15 @@ def fli(scene: Scene, states, n: int, *, per: str = "collision", tangent0=None, 
     )
 
 
-def megno(scene: Scene, states, n: int, *, per: str = "collision", tangent0=None, n_history: int = 100):
+def megno(
+    scene: Scene,
+    states: Float[ArrayLike, "*B S"],
+    n: int,
+    *,
+    per: str = "collision",
+    tangent0: Float[ArrayLike, "*#B S"] | None = None,
+    n_history: int = 100,
+) -> Megno:
     """MEGNO (Cincotta, Simo 2000) of each orbit after ``n`` collisions.
 
     ``Y(tau) = (2/tau) int_0^tau s (|w|'/|w|)(s) ds`` and its running mean
@@ -359,20 +376,22 @@ def megno(scene: Scene, states, n: int, *, per: str = "collision", tangent0=None
     )
 
 
-fli.__doc__ = fli.__doc__.replace("    {args}\n", _ARGS_DOC)
-megno.__doc__ = megno.__doc__.replace("    {args}\n", _ARGS_DOC)
+# Docstrings are None under ``python -OO``: only fill in the ones that are there.
+for _documented in (fli, megno):
+    if _documented.__doc__ is not None:
+        _documented.__doc__ = _documented.__doc__.replace("    {args}\n", _ARGS_DOC)
 
 
 def fli_map(
     scene: Scene,
-    states_grid,
+    states_grid: Float[ArrayLike, "*grid S"],
     n: int,
     *,
     per: str = "collision",
-    tangent0=None,
+    tangent0: Float[ArrayLike, " S"] | None = None,
     chunk: int = MAP_CHUNK,
     driver: str | None = None,
-):
+) -> Float[np.ndarray, "*grid"]:
     """The FLI after ``n`` collisions over a grid of starts: an array of the grid's shape.
 
     Args:

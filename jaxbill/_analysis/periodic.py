@@ -98,10 +98,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from jaxtyping import Array, ArrayLike, Bool, Complex, Float, Int
 
 from jaxbill._engine.collision import _check_eagerly, _collide
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count, require_x64
-from jaxbill._scenes.protocols import NO_CONTACT, PERIODIC_SYMMETRIES, SEVERAL_CONTACTS, Scene
+from jaxbill._scenes.circle.scene import StickInCircle  # the rotation solver is its (periodic_symmetry "rotation")
+from jaxbill._scenes.protocols import (
+    NO_CONTACT,
+    PERIODIC_SYMMETRIES,
+    SEVERAL_CONTACTS,
+    HasAngularMomentum,
+    Scene,
+)
 from jaxbill._scenes.walls import periodic as walls_orbits
 from jaxbill._scenes.walls.periodic import wrap_angle as _wrap
 
@@ -120,7 +128,7 @@ def _rotate(vec, angle):
     return jnp.stack([c * vec[0] - s * vec[1], s * vec[0] + c * vec[1]])
 
 
-def reduced_size(scene: Scene) -> int:
+def reduced_size(scene: StickInCircle) -> int:
     """Number of reduced section coordinates: 4 (rotor), 3 (lens), 2 (circle)."""
     return {"rotor": 4, "lens": 3, "circle": 2}[scene.kind]
 
@@ -138,7 +146,7 @@ def _short_z(scene, z4):
     return {"rotor": z4, "lens": z4[:3], "circle": z4[1:3]}[scene.kind]
 
 
-def reduced_state(scene: Scene, z: jax.Array, phi: jax.Array = 0.0) -> jax.Array:
+def reduced_state(scene: StickInCircle, z: jax.Array, phi: ArrayLike = 0.0) -> jax.Array:
     """The state just after a collision of end P1 at polar angle ``phi``, from reduced coordinates ``z``."""
     beta, w_r, w_t, omega = _full_z(scene, jnp.asarray(z, jnp.float64))
     alpha = phi - beta
@@ -149,7 +157,7 @@ def reduced_state(scene: Scene, z: jax.Array, phi: jax.Array = 0.0) -> jax.Array
     return jnp.stack([centre[0], centre[1], _wrap(alpha), v[0], v[1], omega])
 
 
-def reduced_coordinates(scene: Scene, state: jax.Array, contact: jax.Array):
+def reduced_coordinates(scene: StickInCircle, state: jax.Array, contact: jax.Array):
     """Reduced coordinates ``z`` and contact angle ``phi`` of a state just after a collision.
 
     ``contact`` is the code returned by ``collide`` (+1 or -1; for a corner, 2,
@@ -167,7 +175,7 @@ def reduced_coordinates(scene: Scene, state: jax.Array, contact: jax.Array):
     return _short_z(scene, z4), phi
 
 
-def _iterate(scene, z, p, with_flights=False):
+def _iterate(scene, z, p):
     """``p`` collisions from the section point ``z`` (at ``phi = 0``)."""
 
     def step(carry, _):
@@ -178,9 +186,7 @@ def _iterate(scene, z, p, with_flights=False):
     s0 = reduced_state(scene, z, 0.0)
     (_, period), (states, contacts, flights) = jax.lax.scan(step, (s0, jnp.zeros(())), None, length=p)
     z_p, phi_p = reduced_coordinates(scene, states[-1], contacts[-1])
-    if with_flights:
-        return z_p, phi_p, period, s0, states, contacts, flights
-    return z_p, phi_p, period, s0, states, contacts
+    return z_p, phi_p, period, s0, states, contacts, flights
 
 
 class _Problem(eqx.Module):
@@ -216,7 +222,7 @@ class _Problem(eqx.Module):
 
     def __call__(self, zeta, _=None):
         z = self.z(zeta)
-        z_p, phi_p, _, s0, _, _ = _iterate(self.scene, z, self.p)
+        z_p, phi_p, _, s0, _, _, _ = _iterate(self.scene, z, self.p)
         return self.residual_from(z, z_p, phi_p, s0)
 
     def residual_from(self, z, z_p, phi_p, s0):
@@ -270,20 +276,20 @@ class PeriodicOrbit(eqx.Module):
         p: number of collisions in one period (static).
     """
 
-    state: jax.Array
-    states: jax.Array
-    contacts: jax.Array
-    points: jax.Array
-    period: jax.Array
-    rotation: jax.Array
-    residual: jax.Array
-    multipliers: jax.Array
-    trace: jax.Array
-    stability: jax.Array
-    converged: jax.Array
-    energy: jax.Array
-    angular_momentum: jax.Array
-    monodromy: jax.Array
+    state: Float[Array, "*B S"]
+    states: Float[Array, "*B p S"]
+    contacts: Int[Array, "*B p"]
+    points: Float[Array, "*B p K"]
+    period: Float[Array, "*B"]
+    rotation: Float[Array, "*B"]
+    residual: Float[Array, "*B"]
+    multipliers: Complex[Array, "*B M"]
+    trace: Float[Array, "*B"]
+    stability: Int[Array, "*B"]
+    converged: Bool[Array, "*B"]
+    energy: Float[Array, "*B"]
+    angular_momentum: Float[Array, "*B"]
+    monodromy: Float[Array, "*B k k"]
     p: int = eqx.field(static=True)
 
     @property
@@ -328,7 +334,7 @@ def _stability(trace, parabolic_tol):
     return stability.astype(jnp.int32)
 
 
-def _solve(problem: _Problem, zeta0, max_steps):
+def _solve(problem: _Problem | walls_orbits.WallsProblem | _PlainProblem, zeta0, max_steps):
     """Levenberg-Marquardt with the problem's parameters held constant, differentiable by the IFT.
 
     Returns the solution (differentiable in the problem's parameters by the
@@ -370,7 +376,7 @@ def _periodic_orbit(
         zeta0 = jax.lax.stop_gradient(problem.zeta(z0))
     zeta, jac = _solve(problem, zeta0, max_steps)
     z = problem.z(zeta)
-    z_p, phi_p, period, s0, states, contacts, flights = _iterate(scene, z, p, with_flights=True)
+    z_p, phi_p, period, s0, states, contacts, flights = _iterate(scene, z, p)
     # Sliding along the wall (grazing, flight times -> 0) solves the equations
     # trivially; it is not an orbit.
     speed = jnp.sqrt(2.0 * energy / scene.mass)
@@ -414,6 +420,11 @@ def _periodic_orbit(
     ), frame_phi
 
 
+def _angular_momentum_or_nan(scene: Scene, state: jax.Array) -> jax.Array:
+    """The scene's angular momentum of ``state``, NaN for a scene without one (the 2D walls)."""
+    return scene.angular_momentum(state) if isinstance(scene, HasAngularMomentum) else jnp.full((), jnp.nan)
+
+
 def _walls_periodic_orbit(
     scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation, max_steps, tol, parabolic_tol
 ):
@@ -434,10 +445,7 @@ def _walls_periodic_orbit(
     converged = (residual <= tol) & ~walls_orbits.flights_too_short(problem, flights) & single
     points = walls_orbits.section_points(scene, jnp.concatenate([s0[None], states[:-1]]))
     rotation_found = _wrap(xi[-1]) if problem.has_rotation else jnp.zeros(())
-    if hasattr(scene, "angular_momentum"):
-        momentum = scene.angular_momentum(s0)
-    else:
-        momentum = jnp.full((), jnp.nan)
+    momentum = _angular_momentum_or_nan(scene, s0)
     return PeriodicOrbit(
         state=s0,
         states=states,
@@ -571,7 +579,7 @@ def _plain_periodic_orbit(
     single &= (first_contact != NO_CONTACT) & (first_contact != SEVERAL_CONTACTS) & (contacts[-1] == first_contact)
     all_states = jnp.concatenate([s0[None], states[:-1]])
     all_contacts = jnp.concatenate([first_contact[None], contacts[:-1]])
-    momentum = scene.angular_momentum(s0) if hasattr(scene, "angular_momentum") else jnp.full((), jnp.nan)
+    momentum = _angular_momentum_or_nan(scene, s0)
     return PeriodicOrbit(
         state=s0,
         states=states,
@@ -669,7 +677,7 @@ def _walls_targets(scene, guess, e, angular_momentum, rotation):
 
 def find_periodic_orbit(
     scene: Scene,
-    guess: jax.Array,
+    guess: Float[ArrayLike, " S"],
     period: int,
     *,
     energy=None,
@@ -765,7 +773,7 @@ def _same_orbit(a: PeriodicOrbit, b: PeriodicOrbit, atol: float) -> bool:
 
 def find_periodic_orbits(
     scene: Scene,
-    guesses: jax.Array,
+    guesses: Float[ArrayLike, "B S"],
     period: int,
     *,
     energy=None,
@@ -803,6 +811,7 @@ def find_periodic_orbits(
     b = guesses.shape[0]
     e = jnp.broadcast_to(e, (b,)) if energy is not None else scene.energy(guesses)
     if pin_l:
+        assert isinstance(scene, HasAngularMomentum)  # _targets pins L only for a scene that has one
         l0 = jnp.broadcast_to(l0, (b,)) if angular_momentum is not None else scene.angular_momentum(guesses)
     else:
         l0 = jnp.zeros((b,))
@@ -818,7 +827,7 @@ def find_periodic_orbits(
 
 
 def continue_periodic_orbit(
-    scene: Scene,
+    scene: StickInCircle,
     orbit: PeriodicOrbit,
     parameter: str,
     values,
@@ -857,7 +866,7 @@ def continue_periodic_orbit(
     if _symmetry(scene) != "rotation":
         raise TypeError(
             f"continue_periodic_orbit follows relative periodic orbits of a rotation-symmetric scene "
-            f"(StickInCircle); got {type(scene).__name__} (periodic_symmetry = {scene.periodic_symmetry!r})"
+            f"(StickInCircle); got {type(scene).__name__} (periodic_symmetry = {_symmetry(scene)!r})"
         )
     if parameter not in ("ell", "R", "mass", "inertia"):
         raise ValueError(f"parameter must be 'ell', 'R', 'mass' or 'inertia'; got {parameter!r}")

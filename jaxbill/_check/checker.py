@@ -55,6 +55,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from jaxtyping import ArrayLike, Float, Int, Real
 
 from jaxbill._engine.collision import collide as _collide
 from jaxbill._engine.collision import orbit as _orbit
@@ -212,6 +213,7 @@ def _segment(column: ColumnFlight, y0, dtmax, solver, rtol, atol, root_tol, max_
         throw=False,
     )
     ts, ys = sol.ts, sol.ys
+    assert ts is not None and ys is not None  # SaveAt(steps=True) saves both
     valid = jnp.isfinite(ts)
     n_steps = jnp.sum(valid)
     last = jnp.maximum(n_steps - 1, 0)
@@ -343,9 +345,9 @@ class CheckResult:
     wrapped into ``[-pi, pi)``; ``m <= n`` certified collisions), the reference
     ``orbit`` from ``jb.orbit`` and the comparison ``report``."""
 
-    t: np.ndarray
-    contact: np.ndarray
-    state: np.ndarray
+    t: Float[np.ndarray, " m"]
+    contact: Int[np.ndarray, " m"]
+    state: Float[np.ndarray, "m S"]
     orbit: object
     report: CheckReport
 
@@ -414,7 +416,7 @@ def _first(mask):
 # ---------------------------------------------------------------------------
 def check(
     scene,
-    state0,
+    state0: Real[ArrayLike, " S"],
     n: int,
     *,
     tol: float = 1e-8,
@@ -479,7 +481,7 @@ def check(
             ``jb.orbit``).
     """
     n = check_count("n", n, 1, "number of collisions", MAX_STORED_COUNT)
-    dtype = state0.dtype if hasattr(state0, "dtype") else np.asarray(state0).dtype
+    dtype = np.asarray(state0).dtype
     if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)):
         raise ValueError(f"state0 must be real numbers; got dtype {dtype}")
     flight_of = getattr(scene, "checker_flight", None)

@@ -239,6 +239,7 @@ def _segment(core: _Reduced, y0, t1, dtmax, solver, rtol, atol, root_tol, chunk_
         throw=False,
     )
     ts, ys = sol.ts, sol.ys
+    assert ts is not None and ys is not None  # SaveAt(steps=True) saves both
     valid = jnp.isfinite(ts)
     n_steps = jnp.sum(valid)
     last = jnp.maximum(n_steps - 1, 0)
@@ -254,6 +255,7 @@ def _segment(core: _Reduced, y0, t1, dtmax, solver, rtol, atol, root_tol, chunk_
     K = K * (1.0 + 1e-6)
 
     event_ok = sol.result == diffrax.RESULTS.event_occurred
+    assert sol.event_mask is not None  # set whenever an Event is given
     k_index = jnp.argmax(jnp.stack(sol.event_mask))
     steps = jnp.arange(ts.shape[0])
     # A gap that starts at zero to rounding (the end that just bounced) counts as 0.
@@ -309,6 +311,7 @@ def _land(core: _Reduced, y_s, tau0, k_index, dtmax, solver, rtol, atol, corner_
             max_steps=4096,
             throw=False,
         )
+        assert sol.ys is not None  # SaveAt(t1=True) saves it
         return sol.ys[-1]
 
     def newton(i, tau):
@@ -718,6 +721,7 @@ def check_walls(
         if flag:
             flags.append(CheckFlag(index=i, kind=_FLAG_NAMES[flag], message=f"after t = {t_abs:.6g}: {message}"))
             break
+        assert dt is not None  # a flight without a flag has its time and state
         t_abs += dt
         s = s_new
         times.append(t_abs)
@@ -751,6 +755,7 @@ def check_walls(
                 flags.append(CheckFlag(index=i, kind="local " + _FLAG_NAMES[flag], message=message))
                 bad.append(flag == 7)
                 continue
+            assert s_new is not None  # a flight without a flag has its time and state
             d = _scaled_deviation(
                 (np.array([dt]), s_new[None]), (np.array([ref_t[i] - t_prev[i]]), ref_s[i][None]), scales, planar_scene
             )[0]

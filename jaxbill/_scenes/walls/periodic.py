@@ -57,12 +57,18 @@ A stick that never turns has a 0-dimensional level set: multipliers ``(1,
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, TypeGuard
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from jaxbill._engine.collision import _collide
 from jaxbill._scenes.walls import engine as walls
+
+if TYPE_CHECKING:  # the scenes import the engine this module is part of
+    from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D
+    from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D
 
 _TWO_PI = 2.0 * jnp.pi
 
@@ -81,7 +87,7 @@ def _turn_about_z(vec, angle):
     return jnp.stack([c * vec[0] - s * vec[1], s * vec[0] + c * vec[1], vec[2]])
 
 
-def is_3d(scene) -> bool:
+def is_3d(scene: StickBetweenWalls2D | StickBetweenWalls3D) -> TypeGuard[StickBetweenWalls3D]:
     return scene.state_size == 12
 
 
@@ -122,7 +128,7 @@ def section_points(scene, states):
 class WallsProblem(eqx.Module):
     """Residual of the periodic-orbit equations in scaled unknowns ``zeta``."""
 
-    scene: eqx.Module
+    scene: StickBetweenWalls2D | StickBetweenWalls3D
     base: jax.Array  # (S,) the guess's first section point
     gap: jax.Array  # () int32, the gap touched at the section
     tangent: jax.Array  # (3, 2) orthonormal basis perpendicular to the base's u (3D); unused in 2D
@@ -234,7 +240,7 @@ class WallsProblem(eqx.Module):
             unit = jnp.stack([scene.h, jnp.ones(()), speed, spin])
             diff = diff.at[1].set(wrap_angle(diff[1]))
         parts = [diff / unit, ((scene.energy(s0) - self.energy) / self.vertical_energy())[None]]
-        if self.has_rotation:
+        if is_3d(scene) and self.has_rotation:
             # The pins are traced flags (one compilation for every choice): an
             # unpinned equation is a zero row, which least squares ignores.
             momentum = scene.inertia * scales[-3]

@@ -100,7 +100,7 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
         """Traceable: the velocities' squares and the energy are ordinary float64 numbers."""
         return walls.motion_is_representable(self, state[..., 3:5], state[..., 5] ** 2, state)
 
-    def orbit_constants(self, state0: jax.Array) -> None:
+    def orbit_constants(self, state0: tuple) -> None:
         return None
 
     # -- the engine's questions (see jaxbill._engine.step) -------------------------------

@@ -120,7 +120,7 @@ class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
         """Traceable: the velocities' squares and the energy are ordinary float64 numbers."""
         return walls.motion_is_representable(self, state[..., 6:9], jnp.sum(state[..., 9:12] ** 2, axis=-1), state)
 
-    def orbit_constants(self, state0: jax.Array) -> None:
+    def orbit_constants(self, state0: tuple) -> None:
         return None
 
     # -- the engine's questions (see jaxbill._engine.step) -------------------------------
