@@ -14,11 +14,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import check_count
-from jaxbill._scenes.protocols import Scene
+from jaxbill._scenes.protocols import SamplesStates, Scene
 
 
 class FiniteTimeLyapunov(eqx.Module):
@@ -31,9 +32,9 @@ class FiniteTimeLyapunov(eqx.Module):
         n: number of collisions (static).
     """
 
-    per_time: jax.Array
-    per_collision: jax.Array
-    time: jax.Array
+    per_time: Float[Array, " B"]
+    per_collision: Float[Array, " B"]
+    time: Float[Array, " B"]
     n: int = eqx.field(static=True)
 
 
@@ -58,7 +59,9 @@ def _ftle_jit(scene, states, n, vector0):
     return FiniteTimeLyapunov(per_time=per_time, per_collision=per_collision, time=t, n=n)
 
 
-def finite_time_lyapunov(scene: Scene, states: jax.Array, n: int) -> FiniteTimeLyapunov:
+def finite_time_lyapunov(
+    scene: Scene, states: Float[ArrayLike, "B S"] | Float[ArrayLike, " S"], n: int
+) -> FiniteTimeLyapunov:
     """The largest Lyapunov exponent of each orbit of a batch, after ``n`` collisions.
 
     One tangent vector (a fixed direction in general position) is carried by the
@@ -92,7 +95,12 @@ def chaos_threshold(n: int, factor: float = 5.0) -> float:
     return factor * float(np.log(n)) / n
 
 
-def chaotic_fraction(exponents, weights=None, threshold: float | None = None, n: int | None = None) -> float:
+def chaotic_fraction(
+    exponents: Float[ArrayLike, " B"],
+    weights: Float[ArrayLike, " B"] | None = None,
+    threshold: float | None = None,
+    n: int | None = None,
+) -> float:
     """Weighted fraction of orbits whose finite-time exponent exceeds ``threshold``.
 
     Args:
@@ -120,7 +128,7 @@ def sample_energy_shell(
     angular_momentum: float | None = None,
     seed: int = 0,
     margin: float = 1e-9,
-):
+) -> tuple[Float[np.ndarray, "size S"], Float[np.ndarray, " size"]]:
     """Initial conditions with the Liouville measure on a shell of fixed ``E`` (and ``L``).
 
     The scene draws them (``sample_states``, the ``SamplesStates`` protocol);
@@ -147,8 +155,7 @@ def sample_energy_shell(
         ``(states, weights)``: numpy arrays of shapes ``(size, 6)`` and ``(size,)``.
         Weighted averages over them are microcanonical averages.
     """
-    draw = getattr(scene, "sample_states", None)
-    if draw is None:
+    if not isinstance(scene, SamplesStates):
         raise TypeError(
             f"scene: {type(scene).__name__} cannot draw states on an energy shell (no sample_states: "
             "the SamplesStates protocol of jaxbill._scenes.protocols; the stick in a circle and in an ellipse have one)"
@@ -158,7 +165,7 @@ def sample_energy_shell(
     count = 0
     while count < size:
         m = 2 * (size - count) + 16
-        batch, w = draw(rng, m, energy, angular_momentum=angular_momentum, margin=margin)
+        batch, w = scene.sample_states(rng, m, energy, angular_momentum=angular_momentum, margin=margin)
         states.append(batch)
         weights.append(w)
         count += len(w)

@@ -28,6 +28,7 @@ for checking claims about pictures with numbers:
 from __future__ import annotations
 
 import numpy as np
+from jaxtyping import ArrayLike, Bool, Float
 
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._scenes.circle.sections import reduced_section_bounds, wall_length
@@ -71,7 +72,9 @@ def local_thickness(points, neighbours: int = 12, scale=None, samples: int | Non
     return out
 
 
-def curve_thickness(points, neighbours: int = 12, scale=None, samples: int | None = 500) -> float:
+def curve_thickness(
+    points: Float[ArrayLike, "*m 2"], neighbours: int = 12, scale=None, samples: int | None = 500
+) -> float:
     """Median local thickness (see ``local_thickness``): small for a curve, ``O(1)`` for an area.
 
     By default the median is taken over 500 points spread along the orbit
@@ -104,7 +107,9 @@ def occupancy(points, s_edges, p_edges) -> np.ndarray:
     return counts > 0
 
 
-def covered_fraction(scene, points, energy=0.5, angular_momentum=0.0, bins=(120, 80)) -> float:
+def covered_fraction(
+    scene, points: Float[ArrayLike, "*m 2"], energy=0.5, angular_momentum=0.0, bins=(120, 80)
+) -> float:
     """Fraction of the wholly reachable cells of the ``(s, p)`` section that ``points`` visit.
 
     ``points`` are reduced-section (or Birkhoff) points ``[s, p]`` of any shape
@@ -115,7 +120,7 @@ def covered_fraction(scene, points, energy=0.5, angular_momentum=0.0, bins=(120,
     return float(np.sum(hit & reachable) / np.sum(reachable))
 
 
-def count_islands(points, bins=(200, 200), extent=None) -> int:
+def count_islands(points: Float[ArrayLike, "*m 2"], bins=(200, 200), extent=None) -> int:
     """Number of separate pieces the points form on a ``bins`` grid (8-connected cells).
 
     Args:
@@ -184,7 +189,7 @@ def divergence(scene, states, twin_states_, states0) -> np.ndarray:
     return np.nan_to_num(np.max(tail, axis=1), nan=np.inf)
 
 
-def twin_divergence(scene, states0, n: int, delta: float = 1e-11) -> np.ndarray:
+def twin_divergence(scene, states0: Float[ArrayLike, "B S"], n: int, delta: float = 1e-11) -> Float[np.ndarray, " B"]:
     """How far each orbit and its slightly disturbed twin end up apart after ``n`` collisions.
 
     The twin starts from the same position with the velocity turned by
@@ -208,6 +213,8 @@ def twin_divergence(scene, states0, n: int, delta: float = 1e-11) -> np.ndarray:
     return divergence(scene, both[: len(states0)], both[len(states0) :], states0)
 
 
-def is_chaotic(scene, states0, n: int, threshold: float = CHAOTIC_DIVERGENCE) -> np.ndarray:
+def is_chaotic(
+    scene, states0: Float[ArrayLike, "B S"], n: int, threshold: float = CHAOTIC_DIVERGENCE
+) -> Bool[np.ndarray, " B"]:
     """``twin_divergence(scene, states0, n) > threshold`` (default ``1e-3``): ``(B,)`` booleans."""
     return twin_divergence(scene, states0, n) > threshold

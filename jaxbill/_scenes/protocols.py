@@ -278,12 +278,22 @@ class HasAngularMomentum(Protocol):
         ...
 
 
+@runtime_checkable
 class SamplesStates(Protocol):
     """A scene that can draw valid starts with the Liouville measure on an energy shell."""
 
-    def sample_states(self, key: jax.Array, count: int, energy: float, **invariants) -> jax.Array:
-        """``(count, S)`` valid states of energy ``energy`` (and the other pinned ``invariants``),
-        distributed with the Liouville measure restricted to that shell."""
+    def sample_states(
+        self,
+        rng: np.random.Generator,
+        count: int,
+        energy: float,
+        angular_momentum: float | None = None,
+        margin: float = 1e-9,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``count`` tries at valid states of energy ``energy`` (and ``angular_momentum``, where the
+        scene conserves one; else it must be None), both ends inside by ``margin`` (relative):
+        ``(states (k, S), weights (k,))``, ``k <= count``, Liouville-distributed on the shell once
+        weighted (``jb.sample_energy_shell`` draws until it has enough)."""
         ...
 
 

@@ -95,6 +95,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._engine.validation import MAX_STORED_COUNT, as_states, check_count, require_x64
@@ -158,7 +159,7 @@ def spin_momentum(scene, states: jax.Array) -> jax.Array:
     return scene.inertia * states[..., 11]
 
 
-def _floor_end(scene, contacts: jax.Array, heights: jax.Array):
+def _floor_end(scene, contacts: ArrayLike, heights: jax.Array):
     """Sign ``e`` of the end on the floor (``0.0`` at a flat landing) and whether it is a floor collision.
 
     ``heights`` are the two end heights ``[z_1, z_2]`` (the floor gaps).
@@ -174,7 +175,9 @@ def _floor_end(scene, contacts: jax.Array, heights: jax.Array):
 
 
 @jax.jit
-def floor_section(scene, states: jax.Array, contacts: jax.Array) -> jax.Array:
+def floor_section(
+    scene, states: Float[ArrayLike, "*batch S"], contacts: Int[ArrayLike, "*batch"]
+) -> Float[Array, "*batch 2"]:
     """The 2D floor section ``[theta mod pi, p]`` (see the module docstring); NaN off the floor.
 
     Args:
@@ -215,7 +218,9 @@ def _polar_rate(states: jax.Array):
 
 
 @jax.jit
-def reduced_wall_section(scene, states: jax.Array, contacts: jax.Array) -> jax.Array:
+def reduced_wall_section(
+    scene, states: Float[ArrayLike, "*batch 12"], contacts: Int[ArrayLike, "*batch"]
+) -> Float[Array, "*batch 2"]:
     """The 3D reduced section ``[theta, p]`` at floor collisions (see the module docstring); NaN elsewhere.
 
     ``theta = atan2(|u_perp|, u_z)`` in ``[0, pi]`` is the polar angle of
@@ -247,7 +252,9 @@ def _potential(scene, sin, spin):
 
 
 @jax.jit
-def floor_section_bound(scene, theta, energy=0.5, spin=0.0) -> jax.Array:
+def floor_section_bound(
+    scene, theta: Float[ArrayLike, "*batch"], energy: ArrayLike = 0.5, spin: ArrayLike = 0.0
+) -> Float[Array, "*batch"]:
     """Largest ``|p|`` of the floor section at ``theta``: ``sqrt(1 + (ell/kappa)^2 sin^2 theta) sqrt(1 - U/E')``.
 
     ``U = spin^2 / (2 I sin^2 theta)`` with ``spin = I w_z`` (3D; 0 in 2D) and
@@ -282,7 +289,13 @@ def _floor_velocity(scene, theta, p, energy, spin):
     return theta_dot, kappa * eta_dot, end
 
 
-def floor_state(scene, theta, p, energy=0.5, spin=0.0) -> jax.Array:
+def floor_state(
+    scene,
+    theta: Float[ArrayLike, "*#batch"],
+    p: Float[ArrayLike, "*#batch"],
+    energy: ArrayLike = 0.5,
+    spin: ArrayLike = 0.0,
+) -> Float[Array, "*batch S"]:
     """The state just after a floor collision at section point ``(theta, p)``: the inverse of the sections.
 
     The lower end rests on the floor, the centre at ``x = y = 0``, ``z =
@@ -363,7 +376,9 @@ def floor_seed_points(scene, count: int, energy=0.5, spin=0.0, *, offset: int = 
     return np.asarray(chosen_theta[:count]), np.asarray(chosen_p[:count])
 
 
-def floor_seeds(scene, count: int, energy=0.5, spin=0.0, *, offset: int = 1) -> jax.Array:
+def floor_seeds(
+    scene, count: int, energy: float = 0.5, spin: float = 0.0, *, offset: int = 1
+) -> Float[Array, "count S"]:
     """``count`` start states spread evenly over the reachable floor section, at fixed ``E'`` (and spin).
 
     The points (``floor_seed_points``) are uniform in the area-preserving
@@ -378,7 +393,9 @@ def floor_seeds(scene, count: int, energy=0.5, spin=0.0, *, offset: int = 1) -> 
 
 
 @jax.jit
-def theta_z_path(scene, state: jax.Array, t) -> jax.Array:
+def theta_z_path(
+    scene, state: Float[ArrayLike, "*#batch S"], t: Float[ArrayLike, "*#batch"]
+) -> Float[Array, "*batch 2"]:
     """Points ``[kappa theta, z]`` of the reduced billiard picture along the free flight from ``state``.
 
     Args:
@@ -530,7 +547,9 @@ def orbits_with_twin_distances(scene, states0, n: int, delta: float = 1e-11):
     return orb, wall_twin_distances(scene, both.state[:count], both.state[count:], states0)
 
 
-def wall_twin_divergence(scene, states0, n: int, delta: float = 1e-11) -> np.ndarray:
+def wall_twin_divergence(
+    scene, states0: Float[ArrayLike, "B S"] | Float[ArrayLike, " S"], n: int, delta: float = 1e-11
+) -> Float[np.ndarray, " B"]:
     """How far each orbit and its twin (``wall_twin_states``) are apart after ``n`` collisions, ``(B,)``.
 
     ``~delta n`` (times the flight lengths) on a torus, order one for a
