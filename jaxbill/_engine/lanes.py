@@ -30,7 +30,7 @@ from jaxbill._engine.step import (
     end_and_begin,
     search_step,
     stacked,
-    without_fusion_barriers,
+    without_conditionals,
 )
 
 # Contact codes counted one by one in the running statistics: every scene's codes
@@ -153,12 +153,12 @@ def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, s
     lanes wait for it (or all of them do): a lane idles a turn or two rather
     than every lane paying for it every turn.
     """
-    with without_fusion_barriers():
+    with without_conditionals():
         return _run_block(plan, scene, states0, carry, start, steps)
 
 
 def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, steps: Any):
-    """``run_block``'s loop, traced without fusion barriers (``jaxbill._engine.step.cos_sin``)."""
+    """``run_block``'s loop, traced without conditionals (``jaxbill._engine.step.without_conditionals``)."""
     width = states0.shape[0]
     constants = jax.vmap(lambda s: scene.orbit_constants(components(s)))(states0)
     drift = jax.vmap(lambda s0, s: energy_drift(scene, s0)(s))

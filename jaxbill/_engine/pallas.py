@@ -39,7 +39,7 @@ from jaxbill._engine.step import (
     end_flight_tangent,
     search_step,
     where,
-    without_fusion_barriers,
+    without_conditionals,
 )
 
 # Orbits per kernel program. Measured by a prototype on an H100 (float64, the
@@ -184,7 +184,7 @@ def _call(scene, states0, carry: Carry, steps, tangent, block: int, interpret: b
         interpret=interpret,
         compiler_params=compiler_params,
     )
-    with without_fusion_barriers():
+    with without_conditionals():
         out = kernel(*arguments)
     carry = Carry(out[0][:size].T, out[1], out[2], out[3][: len(CONTACT_CODES) + 1].T)
     if tangent is None:

@@ -63,23 +63,27 @@ def stacked(parts: tuple) -> jax.Array:
     return jnp.stack(parts, axis=-1)
 
 
-_FUSION_BARRIERS = contextvars.ContextVar("jaxbill_fusion_barriers", default=True)
+_CONDITIONALS = contextvars.ContextVar("jaxbill_conditionals", default=True)
 
 
 @contextlib.contextmanager
-def without_fusion_barriers():
-    """Trace scene code in which ``cos_sin`` adds no conditional: the lane drivers.
+def without_conditionals():
+    """Trace scene code in which ``cos_sin`` and ``rarely`` add no ``lax.cond``: the lane drivers.
 
     A Pallas kernel is one fusion already, and Triton lowers no conditional over
     a block of lanes; the XLA lane state machine measured slower with them
     (``benchmarks/bench_drivers.py``: walls 0.5x), so only ``advance`` (single
     orbits, lockstep batches, tangents) keeps them.
     """
-    token = _FUSION_BARRIERS.set(False)
+    token = _CONDITIONALS.set(False)
     try:
         yield
     finally:
-        _FUSION_BARRIERS.reset(token)
+        _CONDITIONALS.reset(token)
+
+
+def _conditionals() -> bool:
+    return _CONDITIONALS.get() and jax.default_backend() == "cpu"
 
 
 def cos_sin(phi, gate):
@@ -95,11 +99,26 @@ def cos_sin(phi, gate):
     their own parameters (``R > 0``), which ``jit`` sees as an argument. Under
     ``vmap`` over scene parameters the conditional becomes a select (both
     branches computed): the same values, no barrier. Only XLA:CPU gets it;
-    see ``without_fusion_barriers`` for the drivers that do without.
+    see ``without_conditionals`` for the drivers that do without.
     """
-    if not _FUSION_BARRIERS.get() or jax.default_backend() != "cpu":
+    if not _conditionals():
         return jnp.cos(phi), jnp.sin(phi)
     return jax.lax.cond(gate, lambda p: (jnp.cos(p), jnp.sin(p)), lambda p: (jnp.ones_like(p), jnp.zeros_like(p)), phi)
+
+
+def rarely(condition, if_true, if_false, *operands):
+    """``if_true(*operands)`` where ``condition`` holds, else ``if_false(*operands)``: the rare case skipped.
+
+    One orbit on XLA:CPU takes a branch, so the rare case (a corner: a second
+    end on the wall at the same instant) costs nothing where it does not
+    happen: a static lens's orbit ran 1.6x faster without it. Under ``vmap``
+    (a batch) the branch becomes a select and both sides are computed, as in
+    the lane drivers (``without_conditionals``). The values are the same
+    either way.
+    """
+    if not _conditionals():
+        return jax.tree.map(lambda a, b: jnp.where(condition, a, b), if_true(*operands), if_false(*operands))
+    return jax.lax.cond(condition, if_true, if_false, *operands)
 
 
 def where(condition, if_true: tuple, if_false: tuple) -> tuple:

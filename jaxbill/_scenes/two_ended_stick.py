@@ -16,7 +16,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 
 from jaxbill._engine.first_root import select
-from jaxbill._engine.step import where
+from jaxbill._engine.step import rarely, where
 from jaxbill._scenes.protocols import SEVERAL_CONTACTS
 
 END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
@@ -72,13 +72,19 @@ def resolve_two_ends(
     other = 1 - index
     gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
     corner = (gap_other <= CORNER_ULPS * jnp.finfo(jnp.float64).eps * gap_scale) & (speed_other > 0.0)
-    first = jnp.where(corner & (speed_other > speed_index), other, index)
-    second = 1 - first
-    kicked = kick(state, select(END_SIGNS, first), u)
-    still_approaching = select(end_speeds(kicked, u), second) > 0.0
-    kicked = where(corner & still_approaching, kick(kicked, select(END_SIGNS, second), u), kicked)
-    contact = jnp.where(corner, jnp.int32(SEVERAL_CONTACTS), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1)))
-    return kicked, contact
+
+    def one_end(state):
+        return kick(state, select(END_SIGNS, index), u), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1))
+
+    def both_ends(state):
+        first = jnp.where(speed_other > speed_index, other, index)
+        second = 1 - first
+        kicked = kick(state, select(END_SIGNS, first), u)
+        still_approaching = select(end_speeds(kicked, u), second) > 0.0
+        kicked = where(still_approaching, kick(kicked, select(END_SIGNS, second), u), kicked)
+        return kicked, jnp.int32(SEVERAL_CONTACTS) + jnp.zeros_like(index)
+
+    return rarely(corner, both_ends, one_end, state)
 
 
 def reflect(state: tuple, arm, u: tuple, normal: tuple, mass_ratio) -> tuple:
