@@ -86,7 +86,7 @@ def _conditionals() -> bool:
     return _CONDITIONALS.get() and jax.default_backend() == "cpu"
 
 
-def cos_sin(phi, gate):
+def cos_sin(phi):
     """``(cos phi, sin phi)``, computed once however many values use them.
 
     XLA:CPU copies an elementwise producer into every fusion that consumes it,
@@ -94,16 +94,16 @@ def cos_sin(phi, gate):
     were evaluated four times per step, the larger part of a batch's root step
     (``benchmarks/bench_drivers.py``: 2.3x on a batch of spinning sticks). A
     conditional is a boundary no fusion crosses, so they are computed inside
-    one. Its predicate ``gate`` must be true and must not be a compile-time
-    constant, or XLA removes the conditional: the scenes pass a test of one of
-    their own parameters (``R > 0``), which ``jit`` sees as an argument. Under
-    ``vmap`` over scene parameters the conditional becomes a select (both
-    branches computed): the same values, no barrier. Only XLA:CPU gets it;
-    see ``without_conditionals`` for the drivers that do without.
+    one whose predicate is always true. The predicate passes through an
+    ``optimization_barrier``: a constant one would be folded and the
+    conditional removed. Only XLA:CPU gets it; see ``without_conditionals``
+    for the drivers that do without.
     """
     if not _conditionals():
         return jnp.cos(phi), jnp.sin(phi)
-    return jax.lax.cond(gate, lambda p: (jnp.cos(p), jnp.sin(p)), lambda p: (jnp.ones_like(p), jnp.zeros_like(p)), phi)
+    always = jax.lax.optimization_barrier(jnp.asarray(True))
+    never_taken = lambda p: (jnp.ones_like(p), jnp.zeros_like(p))  # noqa: E731
+    return jax.lax.cond(always, lambda p: (jnp.cos(p), jnp.sin(p)), never_taken, phi)
 
 
 def rarely(condition, if_true, if_false, *operands):

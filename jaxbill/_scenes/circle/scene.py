@@ -222,7 +222,7 @@ class StickInCircle(eqx.Module):
         """Both ends' gaps ``R^2 - |P_k|^2`` and their time derivatives after a flight of ``t`` (2-tuples)."""
         x, y, alpha, vx, vy, omega = state
         cx, cy = x + vx * t, y + vy * t
-        cu, su = cos_sin(alpha + omega * t, self.R > 0.0)
+        cu, su = cos_sin(alpha + omega * t)
         centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
         centre_slope = -2.0 * (cx * vx + cy * vy)
         along = 2.0 * self.ell * (cx * cu + cy * su)

@@ -261,7 +261,7 @@ class StickInEllipse(eqx.Module):
     def gaps_along_flight(self, state: tuple, t: jax.Array):
         """Both ends' gaps ``ab - P_k^T D P_k`` (area) and their time derivatives after a flight of ``t`` (2-tuples)."""
         x, y, alpha, vx, vy, omega = state
-        cu, su = cos_sin(alpha + omega * t, self.a > 0.0)
+        cu, su = cos_sin(alpha + omega * t)
         table = self.table
         gaps, slopes = [], []
         for sign in (1.0, -1.0):

@@ -115,11 +115,11 @@ def batch_chunk(kind: str) -> int:
 # -- the vertical profile of the ends ------------------------------------------
 
 
-def turn(spin2: jax.Array, t: jax.Array, h):
-    """``cos(W t)`` and ``sin(W t) / W`` from ``W^2``, smooth through ``W = 0`` (``h``: see ``cos_sin``)."""
+def turn(spin2: jax.Array, t: jax.Array):
+    """``cos(W t)`` and ``sin(W t) / W`` from ``W^2``, smooth through ``W = 0``."""
     turning = spin2 > 0.0
     spin = jnp.sqrt(jnp.where(turning, spin2, 1.0))
-    cos_spin, sin_spin = cos_sin(spin * t, h > 0.0)
+    cos_spin, sin_spin = cos_sin(spin * t)
     cos = jnp.where(turning, cos_spin, 1.0)
     sinc = jnp.where(turning, sin_spin / spin, t)
     return cos, sinc
@@ -131,7 +131,7 @@ def gaps_along_flight(profile, t):
     ``profile = (z0, vz, A, D, W^2, ell, h)``; see the module docstring.
     """
     z0, vz, along, turn_rate, spin2, ell, h = profile
-    cos, sinc = turn(spin2, t, h)
+    cos, sinc = turn(spin2, t)
     reach = ell * (along * cos + turn_rate * sinc)
     reach_slope = ell * (turn_rate * cos - along * spin2 * sinc)
     z = z0 + vz * t

@@ -144,7 +144,7 @@ class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
         """``c + v t``, ``u`` turned about ``w`` by ``|w| t``."""
         x, y, z, ux, uy, uz, vx, vy, vz, wx, wy, wz = state
         if self.kind == "rotor":
-            cos, sinc = walls.turn(wx * wx + wy * wy + wz * wz, t, self.h)
+            cos, sinc = walls.turn(wx * wx + wy * wy + wz * wz, t)
             ux, uy, uz = (
                 ux * cos + (wy * uz - wz * uy) * sinc,
                 uy * cos + (wz * ux - wx * uz) * sinc,
