@@ -183,7 +183,6 @@ def batches(args, scenes):
         params = SCENES[label]
         scene = baseline.jaxbill_scene(params)
         states0 = baseline.random_states(params, batch, seed=11)
-        device_states0 = jnp.asarray(states0)
         steps = []
 
         def run_numba():
@@ -191,7 +190,7 @@ def batches(args, scenes):
 
         contenders = {
             "run1": lambda: jb.run(scene, states0, n, devices=devices[:1], progress=False),
-            "orbit1": lambda: jax.block_until_ready(jb.orbit(scene, device_states0, n)),
+            "orbit1": lambda: jax.block_until_ready(jb.orbit_sharded(scene, states0, n, devices=devices[:1])),
             "numba1": run_numba,
         }
         if two:
