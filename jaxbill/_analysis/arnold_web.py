@@ -45,6 +45,8 @@ import pathlib
 from dataclasses import dataclass
 
 import numpy as np
+from jax.typing import ArrayLike
+from jaxtyping import Float
 
 import jaxbill as jb
 
@@ -264,7 +266,9 @@ def frequencies_from_orbit(circle, state0, states) -> TorusFrequencies:
     return TorusFrequencies(nu1=nu1, nu2=nu2, spread=spread)
 
 
-def torus_frequencies(circle, states0, n: int = 2000, batch: int = 512) -> TorusFrequencies:
+def torus_frequencies(
+    circle, states0: Float[ArrayLike, "*grid 6"], n: int = 2000, batch: int = 512
+) -> TorusFrequencies:
     """``nu1``, ``nu2`` per collision of the circle orbits from ``states0`` (see the module docstring).
 
     Runs ``n`` collisions of each orbit (``jb.orbit``, in batches of ``batch``

@@ -86,6 +86,8 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
+from jaxtyping import Float
 
 import jaxbill as jb
 
@@ -229,10 +231,10 @@ def _window_estimates(log_stretch, collisions, weights, j0, t0, t1):
 
 def ensemble_lyapunov(
     scene,
-    states,
+    states: Float[ArrayLike, "B 6"],
     T: float,
     *,
-    weights=None,
+    weights: Float[ArrayLike, " B"] | None = None,
     n_sub: int = 8,
     n_checkpoints: int = 16,
     discard: float = 0.5,
