@@ -6,9 +6,10 @@ For each scene (the stick in a circle at ell = 1.9 and 1.0, the lens, the
 circle, the walls in 2D and 3D, and the stick in an ellipse a = 2, b = 1.4 at
 ell = 0.5 with its static and point limits), one JAX device, a batch of
 ``--batch`` orbits x ``--collisions`` collisions, final states
-(``jb.run(..., driver=...)``): the lockstep driver (a vmapped loop of whole
-collisions) and the lane state machine in one XLA loop, timed in alternation
-in this one process, medians. The root steps per collision come from the
+(``jb.run(..., driver=...)``): the serial driver (one orbit after another),
+the lockstep driver (a vmapped loop of whole collisions) and the lane state
+machine in one XLA loop, timed in alternation in this one process, medians;
+"default" names the driver ``jb.run`` picks for the scene. The root steps per collision come from the
 engine's own search (``jaxbill._engine.step``), counted on the first 256 orbits.
 This is the evidence behind ``jaxbill._engine.lanes.choose_driver``'s default on a
 CPU. The Pallas driver is for GPUs (``bench_gpu.py``); here it would run in
@@ -28,6 +29,7 @@ import numpy as np
 
 import jaxbill as jb
 from jaxbill._engine import step as _step
+from jaxbill._engine.lanes import choose_driver
 
 INF = float("inf")
 
@@ -108,14 +110,12 @@ def main():
     load = os.getloadavg()[0]
     print(f"jax {jax.__version__}; {rounds} interleaved rounds, medians; load average {load:.2f} at start")
     print()
-    print("| scene | lockstep coll/s | lanes coll/s | lanes / lockstep | root steps / collision |")
-    print("|---|---:|---:|---:|---:|")
+    drivers = ("serial", "lockstep", "lanes")
+    print("| scene | serial coll/s | lockstep coll/s | lanes coll/s | default | root steps / collision |")
+    print("|---|---:|---:|---:|---|---:|")
     for label, scene in scenes().items():
         states = start_states(scene, batch, rng)
-        runs = {
-            d: (lambda d=d: jb.run(scene, states, n, devices=device, driver=d, progress=False))
-            for d in ("lockstep", "lanes")
-        }
+        runs = {d: (lambda d=d: jb.run(scene, states, n, devices=device, driver=d, progress=False)) for d in drivers}
         for run in runs.values():
             run()
         times = {d: [] for d in runs}
@@ -124,9 +124,9 @@ def main():
                 started = time.perf_counter()
                 run()
                 times[d].append(time.perf_counter() - started)
-        lock, lanes = (statistics.median(times[d]) for d in ("lockstep", "lanes"))
+        rates = " | ".join(f"{batch * n / statistics.median(times[d]):.3g}" for d in drivers)
         steps = root_steps_per_collision(scene, states[:256], n)
-        print(f"| {label} | {batch * n / lock:.3g} | {batch * n / lanes:.3g} | {lock / lanes:.2f} | {steps:.2f} |")
+        print(f"| {label} | {rates} | {choose_driver(scene, 'cpu')} | {steps:.2f} |")
     print()
     print(f"load average at end {os.getloadavg()[0]:.2f}")
 

@@ -1,6 +1,6 @@
-"""The two batch drivers, lockstep and the lane state machine, run the same collision map.
+"""The batch drivers, serial, lockstep and the lane state machine, run the same collision map.
 
-Both are built from the scene's own pieces (``jaxbill._engine.step``); the lane state
+All are built from the scene's own pieces (``jaxbill._engine.step``); the lane state
 machine takes the root steps of many orbits in one loop, none waiting for
 another. From identical states they must find the same contacts, in the same
 number of root steps, with states and times equal to rounding; and the state
@@ -113,6 +113,42 @@ def test_collision_by_collision_from_identical_states(case):
     after = np.asarray(orbit.state).reshape(-1, scene.state_size)
     scale = np.max(np.abs(state_lock), axis=1, keepdims=True)
     assert np.max(np.abs(after - state_lock) / scale) < 1e-12
+
+
+@pytest.mark.parametrize("driver", ["serial", "lockstep"])
+def test_a_batch_is_bitwise_each_orbit_run_alone(case, driver):
+    """The CPU's drivers (serial, lockstep) give each orbit of a batch bit for bit what the orbit gives alone."""
+    name, scene, states = case
+    some = states[:: max(1, states.shape[0] // 5)]
+    batch = jb.orbit(scene, some, N, driver=driver)
+    for i, state0 in enumerate(some):
+        alone = jb.orbit(scene, state0, N)
+        np.testing.assert_array_equal(np.asarray(batch.state[i]), np.asarray(alone.state), err_msg=name)
+        np.testing.assert_array_equal(np.asarray(batch.t[i]), np.asarray(alone.t), err_msg=name)
+        np.testing.assert_array_equal(np.asarray(batch.contact[i]), np.asarray(alone.contact), err_msg=name)
+
+
+def test_a_lockstep_lane_at_a_corner_gets_both_impulses():
+    """In a lockstep lane the rare second impulse is computed only when some lane needs it: the lane that
+    hits a corner gets it, exactly as alone, and its neighbours are untouched.
+
+    A horizontal static stick flying straight up from the middle reaches the wall with both ends at once
+    (its gaps are equal by symmetry, bit for bit); the first reflection leaves the other end approaching
+    (``1 - 2 (n_y^2 - n_x^2) > 0`` at ``n = (1.5, sqrt(1.75)) / 2``), so both impulses apply: contact 2.
+    """
+    scene = jb.StickInCircle(R=2.0, ell=1.5, inertia=INF)
+    states = start_states(scene, 7)
+    states[3] = [0.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+    batch = jb.orbit(scene, states, 3, driver="lockstep")
+    assert int(batch.contact[3, 0]) == 2 and np.all(np.abs(np.asarray(batch.contact)[np.arange(7) != 3, 0]) == 1)
+    for i, state0 in enumerate(states):
+        alone = jb.orbit(scene, state0, 3)
+        np.testing.assert_array_equal(np.asarray(batch.state[i]), np.asarray(alone.state))
+    energy = np.asarray(scene.energy(jnp.asarray(batch.state[3])))
+    np.testing.assert_allclose(energy, 0.5, rtol=1e-15)
+    run = jb.run(scene, states, 3, driver="lockstep")
+    counts = dict(zip(_lanes.CONTACT_CODES, run.contact_counts[3], strict=False))
+    assert counts[2] == 1
 
 
 def _lane_root_steps(scene, state):

@@ -13,7 +13,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import lanes
 from jaxbill._engine.sharding import DeviceChoice, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
-from jaxbill._engine.step import advance, components
+from jaxbill._engine.step import advance, components, vmapped_over_lanes
 from jaxbill._engine.validation import (
     check_orbit_length,
     check_state,
@@ -172,14 +172,16 @@ def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     return Orbit(t=t, contact=contact, state=states)
 
 
-def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "lockstep") -> Orbit:
-    """``jb.orbit`` of a batch ``(B, S)`` on one device, in lanes of ``scene.batch_chunk`` orbits."""
+def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "serial") -> Orbit:
+    """``jb.orbit`` of a batch ``(B, S)`` on one device: orbit after orbit, or in lanes of ``scene.batch_chunk``."""
+    if driver == "serial":
+        return jax.lax.map(lambda state0: _orbit_scan(scene, state0, n), states0)
     batch, size = states0.shape
     chunk = max(1, min(batch, scene.batch_chunk))
     pad = (-batch) % chunk
     padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, size))])
     if driver == "lockstep":
-        run_chunk = jax.vmap(_orbit_scan, in_axes=(None, 0, None))
+        run_chunk = vmapped_over_lanes(_orbit_scan, in_axes=(None, 0, None))
         out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
         return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
     plan = lanes.Plan("states", every=1, rows=n)
@@ -195,7 +197,7 @@ def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "lockst
 
 
 @eqx.filter_jit
-def _orbit_jit(scene, state0, n, driver="lockstep"):
+def _orbit_jit(scene, state0, n, driver="serial"):
     if state0.ndim == 1:
         return _orbit_scan(scene, state0, n)
     return _orbit_batch(scene, state0, n, driver)
@@ -210,10 +212,10 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
         state0: initial state, shape ``(S,)`` (``S = scene.state_size``: 6, 6,
             12), or a batch of them, shape ``(B, S)``.
         n: number of collisions (a Python int, static: each new ``n`` compiles).
-        driver: for a batch, ``"lockstep"`` or ``"lanes"`` (see
+        driver: for a batch, ``"serial"``, ``"lockstep"`` or ``"lanes"`` (see
             ``jaxbill._engine.lanes.choose_driver``; ``"pallas"`` records no states
             and stands for ``"lanes"`` here); ``None``, the default, picks
-            the faster on the platform (``"lockstep"`` on a CPU, ``"lanes"``
+            the faster on the platform (``"serial"`` on a CPU, ``"lanes"``
             on a GPU). All give the same orbits to rounding.
 
     Returns:
@@ -223,9 +225,10 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
         None))`` gives orbit by orbit what single runs give.
 
     A concrete batch is split over every device JAX shows (``jb.orbit_sharded``;
-    on a CPU jaxbill shows one device per core), padded to whole lanes of
-    ``scene.batch_chunk`` orbits on each, so an orbit's result does not depend
-    on the batch around it or on the number of devices. Inside ``jit`` or
+    on a CPU jaxbill shows one device per core), one orbit after another on
+    each (or padded to whole lanes of ``scene.batch_chunk`` orbits with the
+    vectorised drivers), so an orbit's result does not depend on the batch
+    around it or on the number of devices. Inside ``jit`` or
     ``vmap`` a batch runs on one device.
 
     Raises:
@@ -242,7 +245,7 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
     concrete = is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene))
     if concrete and jnp.ndim(state0) == 2 and jax.process_count() == 1:
         return orbit_sharded(scene, state0, n, driver=driver)
-    chosen = lanes.choose_driver(jax.devices()[0].platform, driver, record="states")
+    chosen = lanes.choose_driver(scene, jax.devices()[0].platform, driver, record="states")
     return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, chosen)
 
 
@@ -267,7 +270,7 @@ def orbit_sharded(
             ``jax.distributed`` every process passes the same full batch.
         n: collisions per orbit (a Python int, static).
         devices: see ``orbit_mesh`` (default: every device of every process).
-        driver: ``"lockstep"``, ``"lanes"`` or ``None`` (the platform's
+        driver: ``"serial"``, ``"lockstep"``, ``"lanes"`` or ``None`` (the platform's
             default): see ``jb.orbit``.
 
     Returns:
@@ -289,9 +292,9 @@ def orbit_sharded(
         raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
     _check_eagerly(scene, states0)
     mesh = orbit_mesh(devices)
-    driver = lanes.choose_driver(mesh.devices.flat[0].platform, driver, record="states")
+    driver = lanes.choose_driver(scene, mesh.devices.flat[0].platform, driver, record="states")
     batch = states0.shape[0]
-    padded = pad_batch(states0, padded_batch_size(batch, scene.batch_chunk, mesh))
+    padded = pad_batch(states0, padded_batch_size(batch, lanes.lane_width(scene, driver), mesh))
     scene_on_mesh = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
     result = _sharded_orbit_function(mesh, n, driver)(scene_on_mesh, to_mesh(padded, mesh, batched=True))
     return jax.tree.map(lambda a: a[:batch], result) if padded.shape[0] != batch else result

@@ -240,16 +240,25 @@ def run_blocks(plan: Plan, width: int | None) -> Callable[..., Any]:
     return run
 
 
-DRIVERS = ("lockstep", "lanes", "pallas")
+DRIVERS = ("serial", "lockstep", "lanes", "pallas")
 
 
-def choose_driver(platform: str, driver: str | None = None, record: str = "final") -> str:
-    """The batch driver: ``driver`` if given, else the one measured fastest on ``platform`` (``"cpu"``, ``"gpu"``, ...).
+def choose_driver(scene, platform: str, driver: str | None = None, record: str = "final") -> str:
+    """The batch driver: ``driver`` if given, else the one measured fastest for ``scene`` on ``platform``
+    (``"cpu"``, ``"gpu"``, ...).
 
+    ``"serial"``: the orbits one after another, each the loop of a single
+    orbit (``jax.lax.map``, no ``vmap``): on a CPU, where loops are compiled
+    whole, an orbit then waits for no other and takes a branch where a batch
+    would compute both sides, and each orbit is bitwise the single orbit's.
+    It is the CPU's default for a scene that searches for its roots (a
+    spinning stick: 1.8x ``"lockstep"`` before ``step.computed_once``, on a
+    par since; walls and ellipse 1.x, ``benchmarks/bench_drivers.py``).
     ``"lockstep"``: a vmapped loop of whole collisions, in lanes of
     ``scene.batch_chunk`` orbits: each root step waits for the lane's slowest
-    orbit, but a turn is cheap, and on a CPU it is the fastest
-    (``benchmarks/bench_drivers.py``). ``"lanes"``: the state machine of this
+    orbit, and a closed-form collision (the lens, the circle) has no root
+    steps to wait for, so there it is the CPU's default (2-3x ``"serial"``:
+    its arithmetic is vectorised). ``"lanes"``: the state machine of this
     module in an XLA loop, in which no orbit waits for another. ``"pallas"``:
     the same state machine inside one Pallas kernel, a block of orbits in
     registers (``jaxbill._engine.pallas``): the default on a GPU; it records final
@@ -258,9 +267,20 @@ def choose_driver(platform: str, driver: str | None = None, record: str = "final
     tests). All give the same orbits to rounding, with the same contacts.
     """
     if driver is None:
-        driver = "lockstep" if platform == "cpu" else "pallas"
+        if platform != "cpu":
+            driver = "pallas"
+        else:
+            driver = "serial" if scene.searches_for_roots else "lockstep"
     elif driver not in DRIVERS:
         raise ValueError(f"driver must be one of {DRIVERS} or None (the platform's default); got {driver!r}")
     if driver == "pallas" and record != "final":
         return "lanes"
     return driver
+
+
+def lane_width(scene, driver: str) -> int:
+    """Orbits per vectorised program for ``driver``: 1 for ``"serial"``, else ``scene.batch_chunk``.
+
+    A batch is padded to whole lanes on every device (``jaxbill._engine.sharding``).
+    """
+    return 1 if driver == "serial" else scene.batch_chunk

@@ -44,6 +44,7 @@ from jaxbill._engine.sharding import (
     shard_over_orbits,
     to_mesh,
 )
+from jaxbill._engine.step import computed_once, vmapped_over_lanes
 from jaxbill._engine.validation import check_count
 from jaxbill._runs import guard as _run_guard
 from jaxbill._runs.files import (
@@ -192,13 +193,20 @@ def _collider(scene, state0):
     energy_unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
     codes = jnp.asarray(CONTACT_CODES, dtype=jnp.int32)
 
-    def collide(carry: _Carry):
-        state, dt, contact = advance(carry.state)
+    def statistics(state, contact, max_energy_error, counts):
         drift = jnp.abs(scene.energy(state) - energy0) / energy_unit
         is_code = contact == codes
-        counts = carry.contact_counts + jnp.append(is_code, ~jnp.any(is_code)).astype(jnp.int64)
+        counts = counts + jnp.append(is_code, ~jnp.any(is_code)).astype(jnp.int64)
         # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
-        return _Carry(state, carry.time + dt, jnp.maximum(carry.max_energy_error, drift), counts), contact
+        return jnp.maximum(max_energy_error, drift), counts
+
+    def collide(carry: _Carry):
+        state, dt, contact = advance(carry.state)
+        # Apart from the collision (a lockstep batch of lenses: 1.25x faster).
+        max_energy_error, counts = computed_once(
+            statistics, state, contact, carry.max_energy_error, carry.contact_counts
+        )
+        return _Carry(state, carry.time + dt, max_energy_error, counts), contact
 
     return collide
 
@@ -275,7 +283,7 @@ def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
 def _lanes_chunk(plan: _Plan, width: int):
     """``_lane_chunk`` for a batch whose size is a multiple of ``width``: lanes of
     ``width`` orbits, vectorised, run one after another (as ``_orbit_batch``)."""
-    lane = jax.vmap(functools.partial(_lane_chunk, plan), in_axes=(None, 0, 0, None, None))
+    lane = vmapped_over_lanes(functools.partial(_lane_chunk, plan), in_axes=(None, 0, 0, None, None))
 
     def run_lanes(scene, states0, carry, start, steps):
         def as_lanes(a):
@@ -288,6 +296,16 @@ def _lanes_chunk(plan: _Plan, width: int):
         return jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), out)
 
     return run_lanes
+
+
+def _serial_chunk(plan: _Plan):
+    """``_lane_chunk`` for a batch, one orbit after another (the ``"serial"`` driver)."""
+    one = functools.partial(_lane_chunk, plan)
+
+    def run_serial(scene, states0, carry, start, steps):
+        return jax.lax.map(lambda orbit: one(scene, orbit[0], orbit[1], start, steps), (states0, carry))
+
+    return run_serial
 
 
 def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
@@ -337,7 +355,9 @@ def _compiled_chunk(plan: _Plan, width: int | None, mesh: Mesh | None, driver: s
     if width is None:
         return jax.jit(functools.partial(_lane_chunk, plan))
     assert mesh is not None  # a batch runs on a mesh
-    if driver == "lockstep":
+    if driver == "serial":
+        batched = _serial_chunk(plan)
+    elif driver == "lockstep":
         batched = _lanes_chunk(plan, width)
     else:
         assert driver is not None  # chosen by the engine for a batch
@@ -359,10 +379,10 @@ class _Engine:
             self.orbit_index = None
             self.lanes = 1
             return
-        self.width = scene.batch_chunk
         self.mesh = mesh = orbit_mesh(devices)
         self.platform = mesh.devices.flat[0].platform
-        lanes.choose_driver(self.platform, driver)  # an unknown driver fails before anything runs
+        # an unknown driver fails here, before anything runs
+        self.width = lanes.lane_width(scene, lanes.choose_driver(scene, self.platform, driver))
         self.driver = driver
         self.batch = state0.shape[0]
         self.lanes = padded_batch_size(self.batch, self.width, self.mesh)
@@ -404,7 +424,7 @@ class _Engine:
         )
 
     def run_chunk(self, plan: _Plan, carry: _Carry, start: int, steps: int):
-        driver = lanes.choose_driver(self.platform, self.driver, plan.record) if self.batched else None
+        driver = lanes.choose_driver(self.scene, self.platform, self.driver, plan.record) if self.batched else None
         function = _compiled_chunk(plan, self.width, self.mesh, driver)
         if self.batched:
             return function(self.device_scene, self.device_state0, carry, start, steps)
@@ -751,8 +771,8 @@ def run(
             orbit runs on the default device.
         progress: a progress bar on stderr; ``None``: when stderr is a terminal,
             in process 0, for a run of several chunks.
-        driver: for a batch, ``"lockstep"``, ``"lanes"`` or ``"pallas"``;
-            ``None`` picks the fastest on the platform: ``"lockstep"`` on a
+        driver: for a batch, ``"serial"``, ``"lockstep"``, ``"lanes"`` or ``"pallas"``;
+            ``None`` picks the fastest on the platform: ``"serial"`` on a
             CPU, ``"pallas"`` on a GPU (``record="final"``; other records
             take ``"lanes"``). See ``jaxbill._engine.lanes.choose_driver``. All give
             the same orbits to rounding; a checkpoint resumes bitwise with the

@@ -16,7 +16,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 
 from jaxbill._engine.first_root import select
-from jaxbill._engine.step import rarely, where
+from jaxbill._engine.step import computed_once, rarely, where
 from jaxbill._scenes.protocols import SEVERAL_CONTACTS
 
 END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
@@ -67,8 +67,7 @@ def resolve_two_ends(
     and the other after it if it still approaches: a deterministic rule for an
     ill-posed event, reported as contact 2. Returns ``(state, contact)``.
     """
-    gaps = end_gaps(state, u)
-    speeds = end_speeds(state, u)
+    gaps, speeds = computed_once(lambda s, d: (end_gaps(s, d), end_speeds(s, d)), state, u)
     other = 1 - index
     gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
     corner = (gap_other <= CORNER_ULPS * jnp.finfo(jnp.float64).eps * gap_scale) & (speed_other > 0.0)
