@@ -17,6 +17,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxbill._engine.collision import _check_eagerly, _poison_if
+from jaxbill._engine.lanes import map_over_orbits
 from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import check_count
 from jaxbill._scenes.protocols import SamplesStates, Scene
@@ -55,7 +56,7 @@ def _ftle_one(scene, state0, n, vector0):
 
 @eqx.filter_jit
 def _ftle_jit(scene, states, n, vector0):
-    per_time, per_collision, t = jax.vmap(_ftle_one, in_axes=(None, 0, None, None))(scene, states, n, vector0)
+    per_time, per_collision, t = map_over_orbits(scene, _ftle_one, (None, 0, None, None))(scene, states, n, vector0)
     return FiniteTimeLyapunov(per_time=per_time, per_collision=per_collision, time=t, n=n)
 
 

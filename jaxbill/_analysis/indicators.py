@@ -68,6 +68,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import pallas
 from jaxbill._engine.collision import _check_eagerly, _poison_if
+from jaxbill._engine.lanes import map_over_orbits
 from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import (
     MAX_STORED_COUNT,
@@ -237,7 +238,7 @@ def _indicators_jit(scene, states, tangent0, n, per, n_history):
     if states.ndim == 1:
         return _indicators_one(scene, states, tangent0, n, per, n_history)
     tangent_axis = None if tangent0 is None or tangent0.ndim == 1 else 0
-    return jax.vmap(_indicators_one, in_axes=(None, 0, tangent_axis, None, None, None))(
+    return map_over_orbits(scene, _indicators_one, (None, 0, tangent_axis, None, None, None))(
         scene, states, tangent0, n, per, n_history
     )
 
