@@ -130,3 +130,35 @@ def test_bad_arguments():
         lyapunov_spectrum(scene, s, 10, qr_every=3)
     with pytest.raises(ValueError, match="outside"):
         lyapunov_spectrum(scene, jnp.asarray([1.9, 0, 0, 1, 0, 0]), 10)
+
+
+def test_the_frame_is_orthonormalised_as_lapack_does():
+    """The QR written out (modified Gram-Schmidt, twice) against numpy's LAPACK QR: the same ``Q`` and
+    ``|diag R|`` to rounding, on a random frame and on one whose columns are nearly parallel."""
+    from jaxbill._analysis.lyapunov import _orthonormalised
+
+    rng = np.random.default_rng(4)
+    random = rng.standard_normal((6, 6))
+    nearly_parallel = np.outer(rng.standard_normal(6), np.ones(4)) + 1e-9 * rng.standard_normal((6, 4))
+    for frame in (random, nearly_parallel):
+        q, diag = (np.asarray(a) for a in _orthonormalised(jnp.asarray(frame)))
+        q_ref, r_ref = np.linalg.qr(frame)
+        signs = np.sign(np.diag(r_ref))
+        np.testing.assert_allclose(diag, np.abs(np.diag(r_ref)), rtol=1e-6 if frame is nearly_parallel else 1e-13)
+        np.testing.assert_allclose(q, q_ref * signs, atol=1e-6 if frame is nearly_parallel else 1e-13)
+        np.testing.assert_allclose(q.T @ q, np.eye(frame.shape[1]), atol=1e-15)
+
+
+@pytest.mark.parametrize("params", [ROTOR[0], LENS[0]], ids=["rotor", "lens"])
+def test_a_batch_gives_each_orbit_its_spectrum_alone(params):
+    """Orbit by orbit, a batch's spectrum is the orbit's alone: bitwise for a scene that searches for
+    its roots (its orbits run one after another), to rounding for the vectorised lens."""
+    scene = jb.StickInCircle(**params)
+    states = jnp.asarray([ROTOR[1] if scene.kind == "rotor" else LENS[1]] * 1)
+    states = jnp.concatenate([states, jnp.asarray(jb.orbit(scene, states[0], 3).state)])
+    batch = np.asarray(lyapunov_spectrum(scene, states, 300).exponents)
+    alone = np.stack([np.asarray(lyapunov_spectrum(scene, s, 300).exponents) for s in states])
+    if scene.searches_for_roots:
+        np.testing.assert_array_equal(batch, alone)
+    else:
+        np.testing.assert_allclose(batch, alone, rtol=0, atol=1e-13)
