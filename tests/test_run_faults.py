@@ -355,13 +355,18 @@ def test_sigterm_mid_run_then_resume_is_the_uninterrupted_run(tmp_path):
 
 
 def _signal_after_chunk(monkeypatch, number, at=2):
-    """Make the run send itself ``number`` when its ``at``-th chunk is done."""
+    """Make the run send itself ``number`` when its ``at``-th chunk is done.
+
+    ``signal.raise_signal`` delivers it to this thread and runs the Python handler before returning.
+    ``os.kill`` of the own process may deliver it to any thread (XLA's, once a test has started
+    them), and the main thread then runs the handler a moment later, after the chunk's check.
+    """
     calls = {"count": 0}
 
     def update(self, done):
         calls["count"] += 1
         if calls["count"] == at:
-            os.kill(os.getpid(), number)
+            signal.raise_signal(number)
 
     monkeypatch.setattr(_streaming._ProgressBar, "update", update)
     return calls
@@ -412,7 +417,7 @@ def test_a_signal_during_the_final_checkpoint_is_not_lost(tmp_path, monkeypatch)
     def save_then_ctrl_c(self, path):
         original(self, path)
         if self.collisions == N:
-            os.kill(os.getpid(), signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)
 
     monkeypatch.setattr(_run_files.Checkpoint, "save", save_then_ctrl_c)
     with pytest.raises(KeyboardInterrupt) as caught:
