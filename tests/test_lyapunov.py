@@ -149,16 +149,20 @@ def test_the_frame_is_orthonormalised_as_lapack_does():
         np.testing.assert_allclose(q.T @ q, np.eye(frame.shape[1]), atol=1e-15)
 
 
-@pytest.mark.parametrize("params", [ROTOR[0], LENS[0]], ids=["rotor", "lens"])
-def test_a_batch_gives_each_orbit_its_spectrum_alone(params):
-    """Orbit by orbit, a batch's spectrum is the orbit's alone: bitwise for a scene that searches for
-    its roots (its orbits run one after another), to rounding for the vectorised lens."""
-    scene = jb.StickInCircle(**params)
-    states = jnp.asarray([ROTOR[1] if scene.kind == "rotor" else LENS[1]] * 1)
-    states = jnp.concatenate([states, jnp.asarray(jb.orbit(scene, states[0], 3).state)])
+@pytest.mark.parametrize("name", ["rotor", "lens", "walls"])
+def test_a_batch_gives_each_orbit_its_spectrum_alone(name):
+    """Orbit by orbit, a batch's spectrum is the orbit's alone: bitwise where the scene's orbits run one
+    after another (``batch_chunk == 1``: the walls), to rounding where they run vectorised."""
+    if name == "walls":
+        scene = jb.StickBetweenWalls2D(h=3.0, ell=1.0)
+        start = jnp.asarray([0.0, 1.5, 0.3, 0.4, 0.9, 1.1])
+    else:
+        params, s0 = {"rotor": ROTOR, "lens": LENS}[name]
+        scene, start = jb.StickInCircle(**params), jnp.asarray(s0)
+    states = jnp.concatenate([start[None], jnp.asarray(jb.orbit(scene, start, 3).state)])
     batch = np.asarray(lyapunov_spectrum(scene, states, 300).exponents)
     alone = np.stack([np.asarray(lyapunov_spectrum(scene, s, 300).exponents) for s in states])
-    if scene.searches_for_roots:
+    if scene.batch_chunk == 1:
         np.testing.assert_array_equal(batch, alone)
     else:
         np.testing.assert_allclose(batch, alone, rtol=0, atol=1e-13)

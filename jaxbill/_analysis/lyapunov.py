@@ -55,12 +55,12 @@ def _initial_vectors(n_dim: int, k: int) -> jax.Array:
 
 def _orthonormalised(frame: jax.Array) -> tuple[jax.Array, jax.Array]:
     """``(Q, diag R)`` of the QR factorisation of a frame ``(D, k)``, ``R_ii > 0``: modified Gram-Schmidt,
-    each vector orthogonalised twice ("twice is enough": orthogonal to rounding however ill-conditioned).
+    each vector orthogonalised twice ("twice is enough": orthogonal to rounding unless the frame is
+    numerically singular).
 
     Written out, not ``jnp.linalg.qr``: a factorisation this small is a few
     hundred flops, where LAPACK's call per orbit and collision cost more than
-    the collision (the spectrum of a spinning stick 2.5x faster), and one
-    orbit alone and in a batch round alike.
+    the collision (the spectrum of a spinning stick 2.5x faster).
     """
     basis: list[jax.Array] = []
     norms = []

@@ -45,8 +45,8 @@ import jax.numpy as jnp
 _TIME_RESOLUTION_ULPS = 4.0
 
 
-def _safe_steps(g, slope, lower_curv, upper_curv):
-    """Lower and upper bounds (s_lo, s_hi) on the distance to each gap's next root.
+def _step_below(g, slope, lower_curv):
+    """A lower bound ``s_lo`` on the distance to a gap's next root: a step along which it cannot vanish.
 
     ``g >= 0`` is the gap clamped at zero (an end through the wall by rounding
     is treated as on it).
@@ -64,16 +64,18 @@ def _safe_steps(g, slope, lower_curv, upper_curv):
     # 0/0 arises only for slope == 0 with no curvature (a motionless gap, which
     # never vanishes) or with g == 0 (an end resting on the wall with no normal
     # motion, which no bound can resolve: it is left to the step cap).
-    s_lo = jnp.where(jnp.isnan(s_lo), jnp.where(g > 0.0, jnp.inf, 0.0), s_lo)
+    return jnp.where(jnp.isnan(s_lo), jnp.where(g > 0.0, jnp.inf, 0.0), s_lo)
 
+
+def _step_above(g, slope, upper_curv):
+    """An upper bound ``s_hi`` on the distance to a gap's next root (``inf``: none is proven)."""
     disc_hi = slope * slope - 2.0 * upper_curv * g
     has_upper_root = (slope < 0.0) & (disc_hi >= 0.0)
-    s_hi = jnp.where(
+    return jnp.where(
         has_upper_root,
         2.0 * g / (-slope + jnp.sqrt(jnp.maximum(disc_hi, 0.0))),
         jnp.inf,
     )
-    return s_lo, s_hi
 
 
 class RootBounds(NamedTuple):
@@ -138,8 +140,7 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
     """
     eps = jnp.finfo(jnp.float64).eps
     clamped = tuple(jnp.maximum(g, 0.0) for g in gaps)
-    steps = [_safe_steps(g, d, bounds.lower_curv, bounds.upper_curv) for g, d in zip(clamped, slopes, strict=True)]
-    s_lo = tuple(lo for lo, _ in steps)
+    s_lo = tuple(_step_below(g, d, bounds.lower_curv) for g, d in zip(clamped, slopes, strict=True))
     index = first_smallest(s_lo)
     s = select(s_lo, index)
     t_next = t + s
@@ -148,8 +149,11 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
     resolution = _TIME_RESOLUTION_ULPS * eps * jnp.maximum(t, bounds.time_scale)
     # Bracketed to the resolution, or a step below one ulp of t on a
     # falling gap: either way the root is known as well as t can hold it.
-    s_hi = select(tuple(hi for _, hi in steps), index)
-    converged = ((s_hi - s) <= resolution) | ((t_next == t) & (select(slopes, index) < 0.0))
+    # The upper bound of the approached gap only (one square root and division
+    # less per gap; select then bound is bitwise bound then select).
+    slope = select(slopes, index)
+    s_hi = _step_above(select(clamped, index), slope, bounds.upper_curv)
+    converged = ((s_hi - s) <= resolution) | ((t_next == t) & (slope < 0.0))
     touching = [(g == 0.0) & (d < 0.0) for g, d in zip(clamped, slopes, strict=True)]
     touching_now, touching_index = touching[-1], jnp.int32(len(touching) - 1)
     for k in range(len(touching) - 2, -1, -1):

@@ -249,17 +249,16 @@ def choose_driver(scene, platform: str, driver: str | None = None, record: str =
     (``"cpu"``, ``"gpu"``, ...).
 
     ``"serial"``: the orbits one after another, each the loop of a single
-    orbit (``jax.lax.map``, no ``vmap``): on a CPU, where loops are compiled
-    whole, an orbit then waits for no other and takes a branch where a batch
-    would compute both sides, and each orbit is bitwise the single orbit's.
-    It is the CPU's default for a scene that searches for its roots (a
-    spinning stick: 1.8x ``"lockstep"`` before ``step.computed_once``, on a
-    par since; walls and ellipse 1.x, ``benchmarks/bench_drivers.py``).
-    ``"lockstep"``: a vmapped loop of whole collisions, in lanes of
-    ``scene.batch_chunk`` orbits: each root step waits for the lane's slowest
-    orbit, and a closed-form collision (the lens, the circle) has no root
-    steps to wait for, so there it is the CPU's default (2-3x ``"serial"``:
-    its arithmetic is vectorised). ``"lanes"``: the state machine of this
+    orbit (``jax.lax.map``, no ``vmap``): an orbit waits for no other and
+    takes a branch where a batch would compute both sides, and each orbit is
+    bitwise the single orbit's. ``"lockstep"``: a vmapped loop of whole
+    collisions, in lanes of ``scene.batch_chunk`` orbits: each root step waits
+    for the lane's slowest orbit, but the lane's arithmetic is vectorised. On
+    a CPU the scene chooses between them through its ``batch_chunk``: 1 for
+    serial (the walls: 1.4x lockstep), else lockstep in lanes of that many
+    (a spinning stick in a circle or an ellipse: 16, 1.05-1.15x serial; the
+    closed forms, the lens and the circle: 256, 2-3x serial;
+    ``benchmarks/bench_drivers.py``). ``"lanes"``: the state machine of this
     module in an XLA loop, in which no orbit waits for another. ``"pallas"``:
     the same state machine inside one Pallas kernel, a block of orbits in
     registers (``jaxbill._engine.pallas``): the default on a GPU; it records final
@@ -271,7 +270,7 @@ def choose_driver(scene, platform: str, driver: str | None = None, record: str =
         if platform != "cpu":
             driver = "pallas"
         else:
-            driver = "serial" if scene.searches_for_roots else "lockstep"
+            driver = "serial" if scene.batch_chunk == 1 else "lockstep"
     elif driver not in DRIVERS:
         raise ValueError(f"driver must be one of {DRIVERS} or None (the platform's default); got {driver!r}")
     if driver == "pallas" and record != "final":
@@ -283,25 +282,37 @@ def map_over_orbits(scene, function: Callable[..., Any], in_axes: tuple) -> Call
     """``function`` of one orbit, mapped over a batch (``in_axes``: 0 or ``None`` per argument) as the
     platform runs ``scene`` fastest: the analyses' counterpart of ``choose_driver``.
 
-    On a CPU a scene that searches for its roots runs its orbits one after
-    another (``jax.lax.map``: each orbit its own loop, no lane waiting for the
-    slowest; FTLE of a spinning stick 2.3x the ``vmap``); anything else is
-    vectorised (``step.vmapped_over_lanes``). Either way each orbit's result is
-    bitwise the orbit's alone.
+    On a CPU the orbits run in lanes of ``scene.batch_chunk``, vectorised
+    (``step.vmapped_over_lanes``), one lane after another; a width of 1 runs
+    them one after another, each its own loop (FTLE steps of a spinning stick
+    in lanes of 16: 2.6x one 1024-wide ``vmap``; of the walls one by one:
+    1.4x lanes of 16). Elsewhere the whole batch is one ``vmap``. Each orbit's
+    result does not depend on the batch around it.
     """
-    if jax.default_backend() != "cpu" or not scene.searches_for_roots:
+    if jax.default_backend() != "cpu":
         return vmapped_over_lanes(function, in_axes)
+    width = scene.batch_chunk
 
-    def one_after_another(*args):
-        mapped = tuple(a for a, axis in zip(args, in_axes, strict=True) if axis is not None)
+    def in_lanes(*args):
+        mapped = [a for a, axis in zip(args, in_axes, strict=True) if axis is not None]
+        batch = mapped[0].shape[0]
+        lanes = -(-batch // width)
+        # Padding lanes repeat the first orbit: a valid start, computed and dropped.
+        mapped = [jnp.concatenate([a, jnp.broadcast_to(a[:1], (lanes * width - batch, *a.shape[1:]))]) for a in mapped]
 
-        def one(orbit_args):
-            given = iter(orbit_args)
-            return function(*(next(given) if axis is not None else a for a, axis in zip(args, in_axes, strict=True)))
+        def lane(lane_args):
+            given = iter(lane_args)
+            full = tuple(next(given) if axis is not None else a for a, axis in zip(args, in_axes, strict=True))
+            if width == 1:
+                return function(*(a[0] if axis is not None else a for a, axis in zip(full, in_axes, strict=True)))
+            return vmapped_over_lanes(function, in_axes)(*full)
 
-        return jax.lax.map(one, mapped)
+        out = jax.lax.map(lane, tuple(a.reshape(lanes, width, *a.shape[1:]) for a in mapped))
+        if width == 1:
+            return jax.tree.map(lambda a: a[:batch], out)
+        return jax.tree.map(lambda a: a.reshape(lanes * width, *a.shape[2:])[:batch], out)
 
-    return one_after_another
+    return in_lanes
 
 
 def lane_width(scene, driver: str) -> int:

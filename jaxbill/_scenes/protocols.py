@@ -57,7 +57,12 @@ class Scene(Protocol):
 
     @property
     def batch_chunk(self) -> int:
-        """Lanes per chunk in a batched run (a vmapped loop waits for its slowest lane)."""
+        """Orbits per vectorised lane of a batch on a CPU; 1: one orbit after another (no ``vmap``).
+
+        A vmapped root search waits for its slowest lane, a narrow lane leaves
+        the vector units idle: the best width is measured per scene
+        (``benchmarks/bench_drivers.py``; ``jaxbill._engine.lanes.choose_driver``).
+        """
         ...
 
     @property

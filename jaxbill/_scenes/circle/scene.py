@@ -45,10 +45,10 @@ from jaxbill._scenes.circle.sections import (
 )
 from jaxbill._scenes.protocols import WALL_TOLERANCE, SectionChart, chosen_section, component
 
-# Orbits of a batch run in chunks of this many lanes, one chunk after another:
-# a vmapped root search waits for its slowest lane, so smaller chunks wait less,
-# and a chunk's working set stays in cache (see benchmarks/bench_collisions.py).
-_BATCH_CHUNK = {"rotor": 64, "lens": 256, "circle": 256}
+# Orbits of a batch on a CPU run in lanes of this many, one lane after another: a
+# vmapped root search waits for its slowest orbit, a narrow lane leaves the vector
+# units idle (16 measured best for a spinning stick, benchmarks/bench_drivers.py).
+_BATCH_CHUNK = {"rotor": 16, "lens": 256, "circle": 256}
 
 KINDS = ("rotor", "lens", "circle")
 
