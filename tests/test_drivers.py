@@ -115,12 +115,16 @@ def test_collision_by_collision_from_identical_states(case):
     assert np.max(np.abs(after - state_lock) / scale) < 1e-12
 
 
-@pytest.mark.parametrize("driver", ["serial", "lockstep"])
-def test_a_batch_is_bitwise_each_orbit_run_alone(case, driver):
-    """The CPU's drivers (serial, lockstep) give each orbit of a batch bit for bit what the orbit gives alone."""
+@pytest.mark.parametrize("driver", ["serial", None])
+@pytest.mark.parametrize("devices", [1, 2])
+def test_a_batch_is_bitwise_each_orbit_run_alone(case, driver, devices):
+    """The serial driver and each scene's default give each orbit of a batch, on one device or two, bit
+    for bit what the orbit gives alone."""
     name, scene, states = case
+    if devices > len(jax.devices()):
+        pytest.skip("one device")
     some = states[:: max(1, states.shape[0] // 5)]
-    batch = jb.orbit(scene, some, N, driver=driver)
+    batch = jb.orbit_sharded(scene, some, N, devices=jax.devices()[:devices], driver=driver)
     for i, state0 in enumerate(some):
         alone = jb.orbit(scene, state0, N)
         np.testing.assert_array_equal(np.asarray(batch.state[i]), np.asarray(alone.state), err_msg=name)

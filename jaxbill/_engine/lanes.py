@@ -255,9 +255,10 @@ def choose_driver(scene, platform: str, driver: str | None = None, record: str =
     collisions, in lanes of ``scene.batch_chunk`` orbits: each root step waits
     for the lane's slowest orbit, but the lane's arithmetic is vectorised. On
     a CPU the scene chooses between them through its ``batch_chunk``: 1 for
-    serial (the walls: 1.4x lockstep), else lockstep in lanes of that many
-    (a spinning stick in a circle or an ellipse: 16, 1.05-1.15x serial; the
-    closed forms, the lens and the circle: 256, 2-3x serial;
+    serial (the walls: 1.4x lockstep; the ellipse, whose lockstep lanes were
+    not bitwise its orbits alone), else lockstep in lanes of that many (a
+    spinning stick in a circle: 16, 1.1-1.15x serial; the closed forms, the
+    lens and the circle: 256, 2-3x serial;
     ``benchmarks/bench_drivers.py``). ``"lanes"``: the state machine of this
     module in an XLA loop, in which no orbit waits for another. ``"pallas"``:
     the same state machine inside one Pallas kernel, a block of orbits in

@@ -72,8 +72,11 @@ from jaxbill._scenes.ellipse.sections import ELLIPSE_CHART, SECTIONS, ellipse_se
 from jaxbill._scenes.protocols import WALL_TOLERANCE, SectionChart, chosen_section, component
 from jaxbill._scenes.smooth_table import EllipseTable
 
-# Orbits per vectorised lane of a batch on a CPU (see the circle's; 16 measured best for a spinning stick).
-_BATCH_CHUNK = {"rotor": 16, "static": 256, "point": 256}
+# Orbits per vectorised lane of a batch on a CPU (see the circle's). A turning stick's
+# orbits run one after another: in lanes of 16 they ran 1.05x faster, but their last
+# bits then depended on the number of devices (a two-device mesh differed from one and
+# from the orbit alone; not explained), and one by one each is bitwise the orbit alone.
+_BATCH_CHUNK = {"rotor": 1, "static": 256, "point": 256}
 
 KINDS = ("rotor", "static", "point")
 
