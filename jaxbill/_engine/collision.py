@@ -215,8 +215,9 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
         driver: for a batch, ``"serial"``, ``"lockstep"`` or ``"lanes"`` (see
             ``jaxbill._engine.lanes.choose_driver``; ``"pallas"`` records no states
             and stands for ``"lanes"`` here); ``None``, the default, picks
-            the faster on the platform (``"serial"`` on a CPU, ``"lanes"``
-            on a GPU). All give the same orbits to rounding.
+            the fastest for the scene on the platform (on a CPU ``"serial"``
+            or ``"lockstep"`` by the scene's ``batch_chunk``, ``"lanes"`` on a
+            GPU). All give the same orbits to rounding.
 
     Returns:
         ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, S)``
@@ -225,10 +226,9 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
         None))`` gives orbit by orbit what single runs give.
 
     A concrete batch is split over every device JAX shows (``jb.orbit_sharded``;
-    on a CPU jaxbill shows one device per core), one orbit after another on
-    each (or padded to whole lanes of ``scene.batch_chunk`` orbits with the
-    vectorised drivers), so an orbit's result does not depend on the batch
-    around it or on the number of devices. Inside ``jit`` or
+    on a CPU jaxbill shows one device per core), padded to whole lanes of the
+    driver's width on each (1 orbit for ``"serial"``), so an orbit's result
+    does not depend on the batch around it or on the number of devices. Inside ``jit`` or
     ``vmap`` a batch runs on one device.
 
     Raises:

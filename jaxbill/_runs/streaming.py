@@ -772,9 +772,10 @@ def run(
         progress: a progress bar on stderr; ``None``: when stderr is a terminal,
             in process 0, for a run of several chunks.
         driver: for a batch, ``"serial"``, ``"lockstep"``, ``"lanes"`` or ``"pallas"``;
-            ``None`` picks the fastest on the platform: ``"serial"`` on a
-            CPU, ``"pallas"`` on a GPU (``record="final"``; other records
-            take ``"lanes"``). See ``jaxbill._engine.lanes.choose_driver``. All give
+            ``None`` picks the fastest for the scene on the platform: on a
+            CPU ``"serial"`` or ``"lockstep"`` by the scene's
+            ``batch_chunk``, on a GPU ``"pallas"`` (``record="final"``; other
+            records take ``"lanes"``). See ``jaxbill._engine.lanes.choose_driver``. All give
             the same orbits to rounding; a checkpoint resumes bitwise with the
             driver that wrote it. Derivatives never go through a driver:
             ``jb.collide``, ``jb.orbit`` of one orbit, ``jb.tangent_map`` and
