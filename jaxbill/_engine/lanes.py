@@ -22,7 +22,10 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, PartitionSpec
 
+from jaxbill._engine.sharding import ORBIT_AXIS
 from jaxbill._engine.step import (
     MAX_ROOT_STEPS,
     begin_flight,
@@ -283,35 +286,55 @@ def map_over_orbits(scene, function: Callable[..., Any], in_axes: tuple) -> Call
     """``function`` of one orbit, mapped over a batch (``in_axes``: 0 or ``None`` per argument) as the
     platform runs ``scene`` fastest: the analyses' counterpart of ``choose_driver``.
 
-    On a CPU the orbits run in lanes of ``scene.batch_chunk``, vectorised
-    (``step.vmapped_over_lanes``), one lane after another; a width of 1 runs
-    them one after another, each its own loop (FTLE steps of a spinning stick
-    in lanes of 16: 2.6x one 1024-wide ``vmap``; of the walls one by one:
-    1.4x lanes of 16). Elsewhere the whole batch is one ``vmap``. Each orbit's
-    result does not depend on the batch around it.
+    On a CPU the batch is split over every device of this process (one per
+    core), and each device runs its orbits in lanes of ``scene.batch_chunk``,
+    vectorised (``step.vmapped_over_lanes``), one lane after another; a width
+    of 1 runs them one after another, each its own loop (FTLE steps of a
+    spinning stick in lanes of 16: 2.6x one 1024-wide ``vmap``; of the walls
+    one by one: 1.4x lanes of 16). Elsewhere the whole batch is one ``vmap``.
+    Arguments that are not mapped are closed over (static values may be among
+    them).
     """
     if jax.default_backend() != "cpu":
         return vmapped_over_lanes(function, in_axes)
     width = scene.batch_chunk
+    devices = jax.local_devices() if jax.process_count() == 1 else jax.local_devices()[:1]
 
     def in_lanes(*args):
         mapped = [a for a, axis in zip(args, in_axes, strict=True) if axis is not None]
         batch = mapped[0].shape[0]
-        lanes = -(-batch // width)
+        unit = width * len(devices)
+        padded = -(-batch // unit) * unit
         # Padding lanes repeat the first orbit: a valid start, computed and dropped.
-        mapped = [jnp.concatenate([a, jnp.broadcast_to(a[:1], (lanes * width - batch, *a.shape[1:]))]) for a in mapped]
+        mapped = [jnp.concatenate([a, jnp.broadcast_to(a[:1], (padded - batch, *a.shape[1:]))]) for a in mapped]
 
-        def lane(lane_args):
-            given = iter(lane_args)
-            full = tuple(next(given) if axis is not None else a for a, axis in zip(args, in_axes, strict=True))
+        def with_fixed(orbit_args):
+            given = iter(orbit_args)
+            return tuple(next(given) if axis is not None else a for a, axis in zip(args, in_axes, strict=True))
+
+        def one_device(*device_args):
+            lanes = device_args[0].shape[0] // width
+
+            def lane(lane_args):
+                if width == 1:
+                    return function(*with_fixed(tuple(a[0] for a in lane_args)))
+                return vmapped_over_lanes(function, in_axes)(*with_fixed(lane_args))
+
+            out = jax.lax.map(lane, tuple(a.reshape(lanes, width, *a.shape[1:]) for a in device_args))
             if width == 1:
-                return function(*(a[0] if axis is not None else a for a, axis in zip(full, in_axes, strict=True)))
-            return vmapped_over_lanes(function, in_axes)(*full)
+                return out
+            return jax.tree.map(lambda a: a.reshape(lanes * width, *a.shape[2:]), out)
 
-        out = jax.lax.map(lane, tuple(a.reshape(lanes, width, *a.shape[1:]) for a in mapped))
-        if width == 1:
-            return jax.tree.map(lambda a: a[:batch], out)
-        return jax.tree.map(lambda a: a.reshape(lanes * width, *a.shape[2:])[:batch], out)
+        if len(devices) > 1:
+            mesh = Mesh(np.array(devices), (ORBIT_AXIS,))
+            one_device = jax.shard_map(
+                one_device,
+                mesh=mesh,
+                in_specs=tuple(PartitionSpec(ORBIT_AXIS) for _ in mapped),
+                out_specs=PartitionSpec(ORBIT_AXIS),
+                check_vma=False,
+            )
+        return jax.tree.map(lambda a: a[:batch], one_device(*mapped))
 
     return in_lanes
 
