@@ -6,8 +6,8 @@ For each scene, on a batch of B = 1024 seeded random states (float64), prints a
 markdown table of steps per second (orbit-collisions per second, summed over the
 batch) for
 
-* ``orbit``: plain collision steps, ``jb.orbit_sharded(scene, states, n, devices=[one])``
-  (on one device, as the tangent runs: ``jb.orbit`` alone would use every core);
+* ``orbit``: plain collision steps, ``jb.orbit(scene, states, n)``; it and the tangent runs
+  use every core (one JAX device per core);
 * ``FTLE (1 vector)``: one collision plus one tangent vector carried by the
   flow's tangent map (one forward-mode JVP) and renormalised,
   ``finite_time_lyapunov``;
@@ -82,9 +82,7 @@ def main() -> None:
         scene = jb.StickInCircle(R=R, ell=ell, inertia=inertia)
         states, _ = sample_energy_shell(scene, args.batch, energy=0.5, seed=0)
         states = jnp.asarray(states)
-        c_orbit, t_orbit = timed(
-            jax, lambda: jb.orbit_sharded(scene, states, n_plain, devices=jax.devices()[:1]).state, args.repeats
-        )
+        c_orbit, t_orbit = timed(jax, lambda: jb.orbit(scene, states, n_plain).state, args.repeats)
         c_ftle, t_ftle = timed(jax, lambda: finite_time_lyapunov(scene, states, n_tangent).per_time, args.repeats)
         c_spec, t_spec = timed(jax, lambda: lyapunov_spectrum(scene, states, n_tangent).exponents, args.repeats)
         r_orbit = args.batch * n_plain / t_orbit
