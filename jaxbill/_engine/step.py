@@ -142,7 +142,7 @@ def rarely(condition, if_true, if_false, *operands):
     happen: a static lens's orbit ran 1.6x faster without it. Under ``vmap``
     a branch becomes a select and both sides are computed; inside
     ``vmapped_over_lanes`` the lanes first ask whether any of them needs the
-    rare side, and compute it only then (a lockstep batch of lenses: 2.4x).
+    rare side, and compute it only then (a lockstep batch of lenses: 1.75x).
     The lane drivers (``without_conditionals``) select. The values are the
     same every way.
     """
