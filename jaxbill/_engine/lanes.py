@@ -22,10 +22,8 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
-from jax.sharding import Mesh, PartitionSpec
 
-from jaxbill._engine.sharding import ORBIT_AXIS
+from jaxbill._engine.sharding import orbit_mesh, shard_over_orbits
 from jaxbill._engine.step import (
     MAX_ROOT_STEPS,
     begin_flight,
@@ -326,14 +324,7 @@ def map_over_orbits(scene, function: Callable[..., Any], in_axes: tuple) -> Call
             return jax.tree.map(lambda a: a.reshape(lanes * width, *a.shape[2:]), out)
 
         if len(devices) > 1:
-            mesh = Mesh(np.array(devices), (ORBIT_AXIS,))
-            one_device = jax.shard_map(
-                one_device,
-                mesh=mesh,
-                in_specs=tuple(PartitionSpec(ORBIT_AXIS) for _ in mapped),
-                out_specs=PartitionSpec(ORBIT_AXIS),
-                check_vma=False,
-            )
+            one_device = shard_over_orbits(one_device, orbit_mesh(devices), tuple(True for _ in mapped))
         return jax.tree.map(lambda a: a[:batch], one_device(*mapped))
 
     return in_lanes
