@@ -32,7 +32,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxbill._engine.lanes import CONTACT_CODES, Carry, fresh_carry
+from jaxbill._engine.lanes import CONTACT_CODES, PALLAS_BLOCK, Carry, fresh_carry
 from jaxbill._engine.step import (
     begin_flight,
     end_and_begin,
@@ -42,10 +42,8 @@ from jaxbill._engine.step import (
     without_conditionals,
 )
 
-# Orbits per kernel program. Measured by a prototype on an H100 (float64, the
-# spinning stick): 32 lanes on one warp were fastest; 64 on 2 warps reached
-# 0.97x that, 128 on 4 0.94x, 256 on 8 0.82x.
-BLOCK = 32
+# Orbits per kernel program (``lanes.PALLAS_BLOCK``, where a batch is padded to it).
+BLOCK = PALLAS_BLOCK
 NUM_WARPS = 1
 
 
