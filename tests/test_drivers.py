@@ -282,6 +282,20 @@ def test_pallas_kernel_matches_the_xla_state_machine_collision_by_collision(name
         states = xla.state
 
 
+@pytest.mark.parametrize("name", ["rotor 1.9", "walls 2D"])
+def test_pallas_through_run_pads_to_whole_blocks_on_one_device(name):
+    """On one device (a single GPU) ``jb.run(driver="pallas")`` pads the batch to
+    whole kernel blocks, whatever the scene's lane width (16 for the rotor, 1 for
+    the walls): a padding to lane widths once made the kernel refuse 37 orbits."""
+    scene = scenes()[name]
+    states = start_states(scene, 37)  # not a multiple of the block
+    one = jax.devices()[:1]
+    kernel = jb.run(scene, states, 12, driver="pallas", devices=one)
+    xla = jb.run(scene, states, 12, driver="lanes", devices=one)
+    np.testing.assert_array_equal(kernel.contact_counts, xla.contact_counts)
+    np.testing.assert_allclose(kernel.final_state, xla.final_state, rtol=1e-10, atol=1e-12)
+
+
 def test_pallas_through_run_with_padding_poison_and_zero_collisions():
     """``jb.run(driver="pallas")`` pads the batch to whole blocks, keeps a NaN lane
     from stalling the others, and does nothing for n = 0."""
