@@ -311,6 +311,29 @@ def grazing_state(R_, ell, w, vy, depth, tau):
 GRAZE = dict(ell=1.0, w=1.0, vy=0.2, tau=0.5)
 
 
+def check_either_side_of_a_zero_impulse_graze(scene, state0, states, dts, contacts):
+    """Collision 0 is the reference's graze (a hit) or the reference's next collision (the graze
+    passed as a miss), and the two collisions after it agree with the reference."""
+    R_, ell, M, _ = _params(scene)
+    inertia = _ref_inertia(scene)
+    sc = gen.scales(R_, ell, M, inertia, [float(v) for v in state0])
+    with mp.workdps(40):
+        rt, rs, rk = ref.reference_orbit(R_, ell, M, inertia, [float(v) for v in state0], 2, dps=40)
+        # The graze's impulse is zero to well below a float64 ulp of the speeds
+        # (the reference's root is resolved to 40 digits, not exactly).
+        speed_change = float(max(abs(rs[0][k] - mpf(float(state0[k]))) for k in (3, 4, 5)))
+        assert speed_change < 1e-3 * EPS * sc[2], f"the reference's graze changed a velocity by {speed_change}"
+        hit = int(contacts[0]) == rk[0]
+        j = 0 if hit else 1
+        assert int(contacts[0]) == rk[j], f"collision 0: contact {contacts[0]}, reference {rk[0]} then {rk[1]}"
+        _, slope = ref.gap(mpf(R_), mpf(ell), [mpf(float(v)) for v in state0], abs(rk[j]), rt[j])
+        e_t = float(abs(mpf(dts[0]) - rt[j])) / max(sc[0], float(rt[j]))
+        e_s = gen.collision_errors([0.0], [list(states[0])], [0.0], [rs[j]], sc)[0]
+    tol = reference_tolerance(R_, ell, state0, float(rt[j]), float(slope), sc[0])
+    assert e_t <= tol and e_s <= tol, f"collision 0: dt error {e_t:.3g}, state error {e_s:.3g} > {tol:.3g}"
+    check_against_reference(scene, states[0], states[1:], dts[1:], contacts[1:], m=2)
+
+
 @pytest.mark.parametrize("depth", [1e-13, 1e-15, 0.0, -1e-15, -1e-13])
 def test_grazing_near_double_root(depth):
     """P1 reaches ``R (1 + depth)`` tangentially: a near double root of its gap.
@@ -321,11 +344,18 @@ def test_grazing_near_double_root(depth):
     graze. ``|depth| <= 1e-15`` is below what a float64 gap resolves: either
     outcome is right, but nothing may go through the wall or become NaN, and
     the grazing departure that follows must be resolved within the step bound.
+    ``depth = 0`` is an exact double root of the float64 state (P1 = (R, 0),
+    moving along y, at t = tau exactly): the graze's impulse is zero, so a hit
+    and a miss lead to the same next state, and whichever the search takes is
+    checked against the reference (its graze, or the collision after it).
     """
     ell, w, vy, tau = GRAZE["ell"], GRAZE["w"], GRAZE["vy"], GRAZE["tau"]
     scene = jb.StickInCircle(R=R, ell=ell)
     s0 = grazing_state(R, ell, w, vy, depth, tau)
-    states, dts, contacts, _, _, _ = full_check(scene, s0, n_ref=3)
+    exact_double_root = depth == 0.0
+    states, dts, contacts, _, _, _ = full_check(scene, s0, n_ref=0 if exact_double_root else 3)
+    if exact_double_root:
+        check_either_side_of_a_zero_impulse_graze(scene, s0, states, dts, contacts)
     if depth >= 1e-13:
         assert contacts[0] == 1 and dts[0] < tau, f"grazing hit missed: dt {dts[0]!r}, contact {contacts[0]}"
         with mp.workdps(40):
