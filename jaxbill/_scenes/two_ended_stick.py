@@ -56,27 +56,38 @@ def spin_term(point: bool, omega, term):
 
 
 def resolve_two_ends(
-    kick: Callable, end_gaps: Callable, end_speeds: Callable, state: tuple, index, u: tuple, gap_scale
+    kick: Callable, end_gap_and_closing: Callable, end_speeds: Callable, state: tuple, index, u: tuple, gap_scale
 ):
     """The impulse at end ``index`` (0: P1, 1: P2) touching the wall, and a simultaneous second contact.
 
-    ``kick(state, end_sign, u)``, ``end_gaps(state, u)`` and
-    ``end_speeds(state, u)`` are the scene's (2-tuples for the ends). If the
+    The scene's ``kick(state, end_sign, u)``; ``end_gap_and_closing(state, u,
+    end_sign)``: one end's gap and a number with the sign of its approach
+    speed (the speed times a positive factor: no square root, no division);
+    ``end_speeds(state, u)``: both ends' approach speeds (a 2-tuple). If the
     other end is on the wall too (within ``CORNER_ULPS`` ulps of
     ``gap_scale``) and approaching, the faster-approaching end is kicked first
     and the other after it if it still approaches: a deterministic rule for an
     ill-posed event, reported as contact 2. Returns ``(state, contact)``.
+
+    Only the other end is examined unless it is at a corner: its approach
+    speed's sign costs a few products, where both ends' normalised speeds cost
+    two square roots and two divisions per collision (XLA:CPU computes
+    ``a / sqrt(b)`` as ``a * rsqrt(b)``, which it does not vectorise: a lockstep
+    batch of lenses spent a quarter of its time there).
     """
-    gaps, speeds = computed_once(lambda s, d: (end_gaps(s, d), end_speeds(s, d)), state, u)
     other = 1 - index
-    gap_other, speed_other, speed_index = select(gaps, other), select(speeds, other), select(speeds, index)
-    corner = (gap_other <= CORNER_ULPS * jnp.finfo(jnp.float64).eps * gap_scale) & (speed_other > 0.0)
+    # A lambda, not the scene's bound method: a conditional hashes its function, a scene is not hashable.
+    gap_other, closing_other = computed_once(
+        lambda s, d, sign: end_gap_and_closing(s, d, sign), state, u, select(END_SIGNS, other)
+    )
+    corner = (gap_other <= CORNER_ULPS * jnp.finfo(jnp.float64).eps * gap_scale) & (closing_other > 0.0)
 
     def one_end(state):
         return kick(state, select(END_SIGNS, index), u), jnp.where(index == 0, jnp.int32(1), jnp.int32(-1))
 
     def both_ends(state):
-        first = jnp.where(speed_other > speed_index, other, index)
+        speeds = end_speeds(state, u)
+        first = jnp.where(select(speeds, other) > select(speeds, index), other, index)
         second = 1 - first
         kicked = kick(state, select(END_SIGNS, first), u)
         still_approaching = select(end_speeds(kicked, u), second) > 0.0

@@ -254,7 +254,13 @@ class StickInCircle(eqx.Module):
     def _resolve_contact(self, state: tuple, index: jax.Array, u: tuple):
         """Apply the impulse at the touching end; a simultaneous second contact too (a lens corner)."""
         return stick.resolve_two_ends(
-            self.kick, partial(_end_gaps, self), partial(_end_approach_speeds, self), state, index, u, self.R**2
+            self.kick,
+            partial(_end_gap_and_closing, self),
+            partial(_end_approach_speeds, self),
+            state,
+            index,
+            u,
+            self.R**2,
         )
 
     # -- derived quantities --------------------------------------------------
@@ -463,6 +469,16 @@ def _end_approach_speeds(scene: StickInCircle, state: tuple, u: tuple) -> tuple:
     return tuple(speeds)
 
 
+def _end_gap_and_closing(scene: StickInCircle, state: tuple, u: tuple, sign) -> tuple:
+    """The gap ``R^2 - |P|^2`` of the end ``P = c + sign ell u`` and ``P . dP/dt``, its approach speed times ``|P|``."""
+    x, y, _, vx, vy, omega = state
+    ux, uy = u
+    arm = sign * scene.ell
+    px, py = x + arm * ux, y + arm * uy
+    ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+    return scene.R**2 - (px * px + py * py), px * ex + py * ey
+
+
 def _exit_time(px, py, vx, vy, radius):
     """First ``t >= 0`` with ``|p + v t| = radius`` while moving outwards.
 
@@ -481,9 +497,11 @@ def _exit_time(px, py, vx, vy, radius):
     # the tangent line through it, as if on the rim: ``-2 b / speed2``. The
     # clamped root would give the chord's midpoint, where the kick is zero and
     # every later flight has length 0.
-    inward = jnp.where(disc < 0.0, -2.0 * b / speed2, (root - b) / speed2)
-    outward = gap / (b + root)
-    t = jnp.where(b <= 0.0, inward, outward)
+    # Each form is a quotient: the numerator and denominator are chosen, then
+    # divided once (the chosen quotient, to the bit, at a third of the divisions).
+    inward = jnp.where(disc < 0.0, -2.0 * b, root - b)
+    outward = b > 0.0
+    t = jnp.where(outward, gap, inward) / jnp.where(outward, b + root, speed2)
     return jnp.where(speed2 > 0.0, jnp.maximum(t, 0.0), jnp.inf)
 
 

@@ -338,7 +338,7 @@ class StickInEllipse(eqx.Module):
         if self.kind == "point":
             return self.kick(state, 0.0, u), jnp.ones(jnp.shape(index), jnp.int32)
         return stick.resolve_two_ends(
-            self.kick, self._end_gaps, self._end_approach_speeds, state, index, u, self.gap_scale
+            self.kick, self._end_gap_and_closing, self._end_approach_speeds, state, index, u, self.gap_scale
         )
 
     def _end_gaps(self, state: tuple, u: tuple) -> tuple:
@@ -346,6 +346,17 @@ class StickInEllipse(eqx.Module):
         ux, uy = u
         table = EllipseTable(self.a, self.b)
         return tuple(table.gap_at(x + sign * self.ell * ux, y + sign * self.ell * uy) for sign in stick.END_SIGNS)
+
+    def _end_gap_and_closing(self, state: tuple, u: tuple, sign) -> tuple:
+        """The gap of the end ``c + sign ell u`` and its velocity along the wall's unnormalised normal there."""
+        x, y, _, vx, vy, omega = state
+        ux, uy = u
+        table = EllipseTable(self.a, self.b)
+        arm = sign * self.ell
+        px, py = x + arm * ux, y + arm * uy
+        nx, ny = table.normal_at(px, py)
+        ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+        return table.gap_at(px, py), nx * ex + ny * ey
 
     def _end_approach_speeds(self, state: tuple, u: tuple) -> tuple:
         """Velocity of each end along the wall's outward unit normal there; > 0 approaching."""

@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbill._engine.first_root import RootBounds, first_smallest, select
-from jaxbill._engine.step import cos_sin, where
+from jaxbill._engine.step import cos_sin, rarely, where
 from jaxbill._engine.validation import (
     broadcast_parameters,
     check_parameter,
@@ -216,15 +216,20 @@ def resolve_contact(scene, state: tuple, index: jax.Array):
     other = jnp.where(select(gaps, other_end) <= select(gaps, other_end + 2), other_end, other_end + 2)
     gap_other, speed_other = select(gaps, other), select(speeds, other)
     several = (gap_other <= _CORNER_ULPS * jnp.finfo(jnp.float64).eps * scene.h) & (speed_other > 0.0)
-    first = jnp.where(several & (speed_other > select(speeds, index)), other, index)
-    second = jnp.where(first == index, other, index)
-    kicked = scene.kick(state, first)
-    still_approaching = select(scene.end_approach_speeds(kicked), second) > 0.0
-    kicked = where(several & still_approaching, scene.kick(kicked, second), kicked)
-    contact = jnp.where(
-        several, jnp.int32(SEVERAL_CONTACTS), select(tuple(jnp.int32(c) for c in _CONTACT_CODES), index)
-    )
-    return kicked, contact
+
+    def one_end(state):
+        return scene.kick(state, index), select(tuple(jnp.int32(c) for c in _CONTACT_CODES), index)
+
+    def both_ends(state):
+        first = jnp.where(speed_other > select(speeds, index), other, index)
+        second = jnp.where(first == index, other, index)
+        kicked = scene.kick(state, first)
+        still_approaching = select(scene.end_approach_speeds(kicked), second) > 0.0
+        kicked = where(still_approaching, scene.kick(kicked, second), kicked)
+        return kicked, jnp.int32(SEVERAL_CONTACTS) + jnp.zeros_like(index)
+
+    # A second contact is rare: one orbit skips its impulse (see ``rarely``).
+    return rarely(several, both_ends, one_end, state)
 
 
 def end_sign(gap: jax.Array) -> jax.Array:
