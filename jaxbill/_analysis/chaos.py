@@ -16,9 +16,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from jaxbill._analysis.lyapunov import grown, log_of, no_growth
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
-from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.tangent import dynamical_size, orbit_constants, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import check_count
 from jaxbill._scenes.protocols import SamplesStates, Scene
 
@@ -40,16 +41,19 @@ class FiniteTimeLyapunov(eqx.Module):
 
 
 def _ftle_one(scene, state0, n, vector0):
+    constants = orbit_constants(scene, state0)
+
     def step(carry, _):
-        state, v, log_growth, t = carry
+        state, v, growth, t = carry
         vectors = to_state_space(scene, state, v[:, None])
-        state, dt, _, vectors = push_forward(scene, state, vectors, flow=True)
+        state, dt, _, vectors = push_forward(scene, state, vectors, flow=True, constants=constants)
         v = to_dynamical(scene, state, vectors)[:, 0]
         norm = jnp.linalg.norm(v)
-        return (state, v / norm, log_growth + jnp.log(norm), t + dt), None
+        return (state, v / norm, grown(growth, norm), t + dt), None
 
-    init = (state0, vector0, jnp.zeros(()), jnp.zeros(()))
-    (_, _, log_growth, t), _ = jax.lax.scan(step, init, None, length=n)
+    init = (state0, vector0, no_growth(), jnp.zeros(()))
+    (_, _, growth, t), _ = jax.lax.scan(step, init, None, length=n)
+    log_growth = log_of(growth)
     # Later states come from the map itself; only the start needs checking.
     return _poison_if(~scene.is_valid(state0), log_growth / t, log_growth / n, t)
 

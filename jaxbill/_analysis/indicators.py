@@ -69,7 +69,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 from jaxbill._engine import pallas
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
-from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.tangent import dynamical_size, orbit_constants, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import (
     MAX_STORED_COUNT,
     check_count,
@@ -201,11 +201,12 @@ def _indicators_one(scene, state0, tangent0, n, per, n_history):
     """FLI and MEGNO of one orbit from ``state0`` ``(S,)``; see ``fli``."""
     flow = per == "time"
     v0 = _initial_vector(scene, state0, tangent0, per)
+    constants = orbit_constants(scene, state0)
 
     def collision(carry, _):
         state, v, t, k, sums = carry
         vectors = to_state_space(scene, state, v[:, None])
-        state, dt, _, vectors = push_forward(scene, state, vectors, flow=flow)
+        state, dt, _, vectors = push_forward(scene, state, vectors, flow=flow, constants=constants)
         v = to_dynamical(scene, state, vectors)[:, 0]
         stretch = jnp.linalg.norm(v)
         t, k = t + dt, k + 1

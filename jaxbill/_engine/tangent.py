@@ -52,13 +52,14 @@ restricting the tangent maps to them loses nothing.
 
 from __future__ import annotations
 
-from typing import Protocol, cast
+from typing import Any, Protocol, cast
 
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import _collide, step_function
+from jaxbill._engine.step import advance, components
 from jaxbill._engine.validation import check_state_static, check_unbatched_scene, require_x64
 from jaxbill._scenes.protocols import Scene
 
@@ -180,16 +181,24 @@ def _map_with_time(scene: Scene, state: jax.Array):
     return new_state, dt
 
 
-def _map_with_contact(scene: Scene, state: jax.Array):
+def _map_with_contact(scene: Scene, state: jax.Array, constants: Any = None):
     # The map itself, unchecked: push_forward carries states the map produced
     # (its callers check the start once, as jb.orbit does). Checking each one
     # as a start would poison the rare states the map leaves mid-corner (an
     # end still approaching its wall, resolved by a collision with dt = 0).
-    new_state, dt, contact = step_function(scene, state)(state)
+    if constants is None:
+        new_state, dt, contact = step_function(scene, state)(state)
+    else:
+        new_state, dt, contact = advance(scene, state, constants)
     return (new_state, dt), contact
 
 
-def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bool):
+def orbit_constants(scene: Scene, state0: jax.Array) -> Any:
+    """What ``scene`` holds fixed along the orbit from ``state0`` ``(S,)`` (``push_forward``'s ``constants``)."""
+    return scene.orbit_constants(components(state0))
+
+
+def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bool, constants: Any = None):
     """Apply one collision to ``state`` and its tangent map to ``vectors``.
 
     Args:
@@ -199,13 +208,19 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
         vectors: tangent vectors as columns, shape ``(S, k)``.
         flow: ``True`` for the fixed-time flow tangent, ``False`` for the
             Jacobian of the collision map (see the module docstring).
+        constants: ``orbit_constants(scene, state0)``, the quantities the
+            scene holds fixed along the orbit, from its first state (the lens's direction: its cosine and sine are
+            then not recomputed, nor differentiated, at every collision);
+            ``None``: from ``state``, differentiated with it.
 
     Returns:
         ``(new_state, dt, contact, new_vectors)`` with ``new_vectors`` of shape
         ``(S, k)``. The collision is linearised once (the root search runs
         once) and the linear map applied to the ``k`` vectors.
     """
-    (new_state, dt), linear, contact = jax.linearize(lambda s: _map_with_contact(scene, s), state, has_aux=True)
+    (new_state, dt), linear, contact = jax.linearize(
+        lambda s: _map_with_contact(scene, s, constants), state, has_aux=True
+    )
 
     def push(v):
         ds, dtime = linear(v)
