@@ -13,7 +13,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import lanes
 from jaxbill._engine.sharding import DeviceChoice, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
-from jaxbill._engine.step import advance, components, vmapped_over_lanes
+from jaxbill._engine.step import advance, advance_components, components, stacked, vmapped_over_lanes
 from jaxbill._engine.validation import (
     check_orbit_length,
     check_state,
@@ -155,15 +155,16 @@ def _check_eagerly(scene, state, *, single: bool = False) -> None:
 
 def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     state0 = jnp.asarray(state0, dtype=jnp.float64)
-    advance = step_function(scene, state0)
+    constants = scene.orbit_constants(components(state0))
 
     def step(carry, _):
-        state, t = carry
-        new_state, dt, contact = advance(state)
+        parts, t = carry
+        new_parts, dt, contact = advance_components(scene, parts, constants)
         t = t + dt
-        return (new_state, t), (t, contact, new_state)
+        return (new_parts, t), (t, contact, stacked(new_parts))
 
-    _, (t, contact, states) = jax.lax.scan(step, (state0, jnp.zeros((), jnp.float64)), length=n)
+    start = (components(state0), jnp.zeros((), jnp.float64))
+    _, (t, contact, states) = jax.lax.scan(step, start, length=n)
     # Later states come from the map itself; only the start needs checking.
     t, contact, states = _poison_if(~scene.is_valid(state0), t, contact, states)
     # After a root search that hit its step bound (t NaN from then on), the

