@@ -166,3 +166,17 @@ def test_a_batch_gives_each_orbit_its_spectrum_alone(name):
         np.testing.assert_array_equal(batch, alone)
     else:
         np.testing.assert_allclose(batch, alone, rtol=0, atol=1e-13)
+
+
+def test_growth_past_float64s_range_keeps_its_log():
+    """A growth multiplied up by ``grown`` (what the spectrum and FTLE carry between logs) has the log
+    of the exact product, here 1e1200 / 1e600 * 3, which float64 cannot hold: the sum of the logs."""
+    from jaxbill._analysis.lyapunov import grown, log_of, no_growth
+
+    factors = [1e300] * 4 + [1e-300] * 2 + [3.0, 0.25]
+    growth = no_growth()
+    for factor in factors:
+        growth = grown(growth, jnp.asarray(factor))
+    expected = sum(np.log(factors))  # 600 ln 10 + ln 0.75
+    np.testing.assert_allclose(float(log_of(growth)), expected, rtol=1e-15)
+    assert np.sum(np.log10(factors[:4])) > np.log10(np.finfo(np.float64).max)  # a plain product overflows

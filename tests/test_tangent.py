@@ -233,3 +233,22 @@ def test_tangent_map_under_vmap_and_bad_mode():
         np.testing.assert_allclose(batch[k], _tangent_jit(scene, states[k])[3], rtol=1e-13, atol=1e-13)
     with pytest.raises(ValueError, match="mode"):
         tangent_map(scene, states[0], mode="sideways")
+
+
+def test_the_lens_direction_held_fixed_pushes_vectors_as_recomputed():
+    """``push_forward`` with the orbit's constants (the static lens's direction, computed once from the
+    first state) moves the state bitwise and tangent vectors of the dynamical frame to rounding as when
+    the direction is recomputed, and differentiated, at every collision."""
+    from jaxbill._engine.tangent import dynamical_frame, orbit_constants, push_forward
+
+    scene = jb.StickInCircle(R=2.0, ell=1.5, inertia=float("inf"))
+    state0 = jnp.asarray([0.434, -0.323, -1.554, 0.991, -0.131, 0.0])
+    constants = orbit_constants(scene, state0)
+    state = state0
+    for _ in range(20):
+        vectors = dynamical_frame(scene, state)
+        fixed = push_forward(scene, state, vectors, flow=True, constants=constants)
+        recomputed = push_forward(scene, state, vectors, flow=True)
+        np.testing.assert_array_equal(fixed[0], recomputed[0])
+        np.testing.assert_allclose(fixed[3], recomputed[3], rtol=1e-14, atol=1e-14)
+        state = fixed[0]
