@@ -18,10 +18,14 @@
    batch and its single orbits, would agree only to the last bit. So jaxbill
    also caps the instruction set at AVX (``--xla_cpu_max_isa=AVX``), which
    has no FMA: every program then rounds every operation the same way, and
-   float64 vector width is unchanged. The cost: JAX code of your own in the
-   same process runs without FMA and AVX2 too (float32 matrix products
-   slow down most). Other CPUs (ARM) have no FMA-free level to cap at, so
-   there jaxbill sets neither option.
+   float64 vector width is unchanged. The cost: LLVM then evaluates a
+   float64 ``sqrt`` lane by lane in a vectorised loop (2.5 ns a lane against
+   0.64 ns with AVX2: a spinning stick's lockstep batch ran 1.3x faster at
+   AVX-512, with FMAs), and JAX code of your own in the same process runs
+   without FMA and AVX2 too (float32 matrix products slow down most). No
+   XLA option turns FMA contraction off at AVX2 (``docs/performance.md``).
+   Other CPUs (ARM) have no FMA-free level to cap at, so there jaxbill sets
+   neither option.
 
 Both are process-wide and take effect only if set before the backend starts
 (the first computation, or ``jax.devices()``). jaxbill never overrides a
