@@ -208,10 +208,11 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
         vectors: tangent vectors as columns, shape ``(S, k)``.
         flow: ``True`` for the fixed-time flow tangent, ``False`` for the
             Jacobian of the collision map (see the module docstring).
-        constants: ``orbit_constants(scene, state0)``, the quantities the
-            scene holds fixed along the orbit, from its first state (the lens's direction: its cosine and sine are
-            then not recomputed, nor differentiated, at every collision);
-            ``None``: from ``state``, differentiated with it.
+        constants: ``orbit_constants(scene, state0)``, what the scene holds
+            fixed along the orbit, from its first state (the static lens's
+            direction: its cosine and sine are then neither recomputed nor
+            differentiated at every collision); ``None``: computed from
+            ``state`` and differentiated with it.
 
     Returns:
         ``(new_state, dt, contact, new_vectors)`` with ``new_vectors`` of shape

@@ -73,7 +73,7 @@ def resolve_two_ends(
     speed's sign costs a few products, where both ends' normalised speeds cost
     two square roots and two divisions per collision (XLA:CPU computes
     ``a / sqrt(b)`` as ``a * rsqrt(b)``, which it does not vectorise: a lockstep
-    batch of lenses spent a quarter of its time there).
+    batch of lenses spent a third of its time there).
     """
     other = 1 - index
     # A lambda, not the scene's bound method: a conditional hashes its function, a scene is not hashable.
