@@ -239,7 +239,8 @@ def test_the_lens_direction_held_fixed_pushes_vectors_as_recomputed():
     """``push_forward`` with the orbit's constants (the static lens's direction, computed once from the
     first state) moves the state bitwise and tangent vectors of the dynamical frame to rounding as when
     the direction is recomputed, and differentiated, at every collision."""
-    from jaxbill._engine.tangent import dynamical_frame, orbit_constants, push_forward
+    from jaxbill._engine.step import orbit_constants
+    from jaxbill._engine.tangent import dynamical_frame, push_forward
 
     scene = jb.StickInCircle(R=2.0, ell=1.5, inertia=float("inf"))
     state0 = jnp.asarray([0.434, -0.323, -1.554, 0.991, -0.131, 0.0])

@@ -19,7 +19,8 @@ from jaxtyping import Array, ArrayLike, Float
 from jaxbill._analysis.lyapunov import grown, log_of, no_growth
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
-from jaxbill._engine.tangent import dynamical_size, orbit_constants, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.step import orbit_constants
+from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import check_count
 from jaxbill._scenes.protocols import SamplesStates, Scene
 

@@ -69,7 +69,8 @@ from jaxtyping import Array, ArrayLike, Float, Int
 from jaxbill._engine import pallas
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
-from jaxbill._engine.tangent import dynamical_size, orbit_constants, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.step import orbit_constants
+from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
 from jaxbill._engine.validation import (
     MAX_STORED_COUNT,
     check_count,

@@ -13,7 +13,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import lanes
 from jaxbill._engine.sharding import DeviceChoice, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
-from jaxbill._engine.step import advance, advance_components, components, stacked, vmapped_over_lanes
+from jaxbill._engine.step import advance, advance_components, components, orbit_constants, stacked, vmapped_over_lanes
 from jaxbill._engine.validation import (
     check_orbit_length,
     check_state,
@@ -52,7 +52,7 @@ def step_function(scene: Scene, state0: jax.Array):
     (check ``scene.is_valid(state0)`` once; later states come from the map).
     Quantities the scene holds fixed along an orbit are computed here once.
     """
-    constants = scene.orbit_constants(components(state0))
+    constants = orbit_constants(scene, state0)
     return lambda state: advance(scene, state, constants)
 
 
@@ -155,7 +155,7 @@ def _check_eagerly(scene, state, *, single: bool = False) -> None:
 
 def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
     state0 = jnp.asarray(state0, dtype=jnp.float64)
-    constants = scene.orbit_constants(components(state0))
+    constants = orbit_constants(scene, state0)
 
     def step(carry, _):
         parts, t = carry

@@ -29,6 +29,7 @@ from jaxbill._engine.step import (
     begin_flight,
     components,
     end_and_begin,
+    orbit_constants,
     search_step,
     stacked,
     vmapped_over_lanes,
@@ -162,7 +163,7 @@ def run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, s
 def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, steps: Any):
     """``run_block``'s loop, traced without conditionals (``jaxbill._engine.step.without_conditionals``)."""
     width = states0.shape[0]
-    constants = jax.vmap(lambda s: scene.orbit_constants(components(s)))(states0)
+    constants = jax.vmap(lambda s: orbit_constants(scene, s))(states0)
     drift = jax.vmap(lambda s0, s: energy_drift(scene, s0)(s))
     end_and_begin_lanes = jax.vmap(lambda lane, active, c: end_and_begin(scene, lane, active, c))
     step_lanes = jax.vmap(lambda lane: search_step(scene, lane))

@@ -58,6 +58,11 @@ def components(state: jax.Array) -> tuple:
     return tuple(state[..., i] for i in range(state.shape[-1]))
 
 
+def orbit_constants(scene, state0: jax.Array) -> Any:
+    """What ``scene`` holds fixed along the orbit from ``state0`` ``(S,)``: ``advance``'s ``constants``."""
+    return scene.orbit_constants(components(state0))
+
+
 def stacked(parts: tuple) -> jax.Array:
     """A state ``(..., S)`` from its components (the inverse of ``components``)."""
     return jnp.stack(parts, axis=-1)

@@ -58,8 +58,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int
 
-from jaxbill._engine.collision import _collide, step_function
-from jaxbill._engine.step import advance, components
+from jaxbill._engine.collision import _collide
+from jaxbill._engine.step import advance, orbit_constants
 from jaxbill._engine.validation import check_state_static, check_unbatched_scene, require_x64
 from jaxbill._scenes.protocols import Scene
 
@@ -187,15 +187,9 @@ def _map_with_contact(scene: Scene, state: jax.Array, constants: Any = None):
     # as a start would poison the rare states the map leaves mid-corner (an
     # end still approaching its wall, resolved by a collision with dt = 0).
     if constants is None:
-        new_state, dt, contact = step_function(scene, state)(state)
-    else:
-        new_state, dt, contact = advance(scene, state, constants)
+        constants = orbit_constants(scene, state)
+    new_state, dt, contact = advance(scene, state, constants)
     return (new_state, dt), contact
-
-
-def orbit_constants(scene: Scene, state0: jax.Array) -> Any:
-    """What ``scene`` holds fixed along the orbit from ``state0`` ``(S,)`` (``push_forward``'s ``constants``)."""
-    return scene.orbit_constants(components(state0))
 
 
 def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bool, constants: Any = None):

@@ -50,6 +50,14 @@ def flight(turns: bool, state: tuple, t) -> tuple:
     return x + vx * t, y + vy * t, alpha, vx, vy, omega
 
 
+def end_motion(state: tuple, u: tuple, arm) -> tuple:
+    """The end ``P = c + arm u`` (``arm = +-ell``) and its velocity ``dP/dt = v + arm omega (-uy, ux)``:
+    ``(px, py, ex, ey)``."""
+    x, y, _, vx, vy, omega = state
+    ux, uy = u
+    return x + arm * ux, y + arm * uy, vx - arm * omega * uy, vy + arm * omega * ux
+
+
 def spin_term(point: bool, omega, term):
     """``term`` (``I omega^2 / 2`` or ``I omega``); for a point 0 where ``omega = 0`` (``I = inf``: not NaN)."""
     return jnp.where(omega == 0.0, 0.0, term) if point else term

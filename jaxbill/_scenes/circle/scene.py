@@ -447,35 +447,21 @@ class StickInCircle(eqx.Module):
 
 def _end_gaps(scene: StickInCircle, state: tuple, u: tuple) -> tuple:
     """``R^2 - |P_k|^2`` of ends P1 and P2."""
-    x, y = state[0], state[1]
-    ux, uy = u
-    gaps = []
-    for sign in (1.0, -1.0):
-        px, py = x + sign * scene.ell * ux, y + sign * scene.ell * uy
-        gaps.append(scene.R**2 - (px * px + py * py))
-    return tuple(gaps)
+    return tuple(_end_gap_and_closing(scene, state, u, sign)[0] for sign in stick.END_SIGNS)
 
 
 def _end_approach_speeds(scene: StickInCircle, state: tuple, u: tuple) -> tuple:
     """Normal velocity ``v . n + omega s_k`` of ends P1 and P2 towards the wall."""
-    x, y, _, vx, vy, omega = state
-    ux, uy = u
     speeds = []
-    for sign in (1.0, -1.0):
-        arm = sign * scene.ell
-        px, py = x + arm * ux, y + arm * uy
-        ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+    for sign in stick.END_SIGNS:
+        px, py, ex, ey = stick.end_motion(state, u, sign * scene.ell)
         speeds.append((px * ex + py * ey) / jnp.sqrt(px * px + py * py))
     return tuple(speeds)
 
 
 def _end_gap_and_closing(scene: StickInCircle, state: tuple, u: tuple, sign) -> tuple:
     """The gap ``R^2 - |P|^2`` of the end ``P = c + sign ell u`` and ``P . dP/dt``, its approach speed times ``|P|``."""
-    x, y, _, vx, vy, omega = state
-    ux, uy = u
-    arm = sign * scene.ell
-    px, py = x + arm * ux, y + arm * uy
-    ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+    px, py, ex, ey = stick.end_motion(state, u, sign * scene.ell)
     return scene.R**2 - (px * px + py * py), px * ex + py * ey
 
 

@@ -342,32 +342,22 @@ class StickInEllipse(eqx.Module):
         )
 
     def _end_gaps(self, state: tuple, u: tuple) -> tuple:
-        x, y = state[0], state[1]
-        ux, uy = u
-        table = EllipseTable(self.a, self.b)
-        return tuple(table.gap_at(x + sign * self.ell * ux, y + sign * self.ell * uy) for sign in stick.END_SIGNS)
+        return tuple(self._end_gap_and_closing(state, u, sign)[0] for sign in stick.END_SIGNS)
 
     def _end_gap_and_closing(self, state: tuple, u: tuple, sign) -> tuple:
         """The gap of the end ``c + sign ell u`` and its velocity along the wall's unnormalised normal there."""
-        x, y, _, vx, vy, omega = state
-        ux, uy = u
         table = EllipseTable(self.a, self.b)
-        arm = sign * self.ell
-        px, py = x + arm * ux, y + arm * uy
+        px, py, ex, ey = stick.end_motion(state, u, sign * self.ell)
         nx, ny = table.normal_at(px, py)
-        ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
         return table.gap_at(px, py), nx * ex + ny * ey
 
     def _end_approach_speeds(self, state: tuple, u: tuple) -> tuple:
         """Velocity of each end along the wall's outward unit normal there; > 0 approaching."""
-        x, y, _, vx, vy, omega = state
-        ux, uy = u
         table = EllipseTable(self.a, self.b)
         speeds = []
         for sign in stick.END_SIGNS:
-            arm = sign * self.ell
-            nx, ny = table.normal_at(x + arm * ux, y + arm * uy)
-            ex, ey = vx - arm * omega * uy, vy + arm * omega * ux
+            px, py, ex, ey = stick.end_motion(state, u, sign * self.ell)
+            nx, ny = table.normal_at(px, py)
             speeds.append((nx * ex + ny * ey) / jnp.sqrt(nx * nx + ny * ny))
         return tuple(speeds)
 
