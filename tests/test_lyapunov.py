@@ -180,3 +180,20 @@ def test_growth_past_float64s_range_keeps_its_log():
     expected = sum(np.log(factors))  # 600 ln 10 + ln 0.75
     np.testing.assert_allclose(float(log_of(growth)), expected, rtol=1e-15)
     assert np.sum(np.log10(factors[:4])) > np.log10(np.finfo(np.float64).max)  # a plain product overflows
+
+
+@pytest.mark.parametrize("k", range(1, 8))
+def test_exponents_are_ordered_as_numpy_sorts_them(k):
+    """The compare-and-swap sort of the exponents and history against numpy's sort, largest first and NaN
+    last: with ties, signed zeros, infinities and NaNs (a poisoned orbit), for every length a scene has."""
+    from jaxbill._analysis.lyapunov import _descending
+
+    rng = np.random.default_rng(k)
+    values = rng.standard_normal((400, k))
+    for special, share in ((np.nan, 0.1), (0.0, 0.1), (-0.0, 0.05), (1.0, 0.1), (np.inf, 0.05), (-np.inf, 0.05)):
+        values[rng.random(values.shape) < share] = special
+    got = np.asarray(_descending(jnp.asarray(values)))
+    expected = -np.sort(-values, axis=-1, kind="stable")  # NaN last; ties (0.0, -0.0) kept in order
+    np.testing.assert_array_equal(got, expected)
+    numbers = ~np.isnan(expected)  # a NaN's sign means nothing
+    np.testing.assert_array_equal(np.signbit(got)[numbers], np.signbit(expected)[numbers])
