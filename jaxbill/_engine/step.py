@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbill._engine.first_root import first_root, root_step, search_start, select
+from jaxbill._engine.trig import cos_sin_polynomial
 from jaxbill._scenes.protocols import NO_CONTACT
 
 # Static bound on root-search steps per collision. Typical collisions take a
@@ -98,8 +99,10 @@ def cos_sin(phi):
     and a root step's gaps and slopes are four fusions: ``cos`` and ``sin``
     were evaluated four times per step, the larger part of a batch's root step
     (``benchmarks/bench_drivers.py``: 2.3x on a batch of spinning sticks).
+    Both come from one polynomial evaluation that vectorises
+    (``jaxbill._engine.trig``), where XLA:CPU calls ``cos`` and ``sin`` value by value.
     """
-    return computed_once(lambda p: (jnp.cos(p), jnp.sin(p)), phi)
+    return computed_once(cos_sin_polynomial, phi)
 
 
 def computed_once(function, *operands):
