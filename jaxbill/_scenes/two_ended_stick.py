@@ -16,7 +16,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 
 from jaxbill._engine.first_root import select
-from jaxbill._engine.step import computed_once, rarely, where
+from jaxbill._engine.step import computed_once, cos_sin, rarely, where
 from jaxbill._scenes.protocols import SEVERAL_CONTACTS
 
 END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
@@ -34,7 +34,7 @@ def direction(point: bool, alpha):
     """``(cos alpha, sin alpha)``; ``(1, 0)`` for a point (``ell = 0``), which never needs it."""
     if point:
         return jnp.ones_like(alpha), jnp.zeros_like(alpha)
-    return jnp.cos(alpha), jnp.sin(alpha)
+    return cos_sin(alpha)
 
 
 def flight(turns: bool, state: tuple, t) -> tuple:

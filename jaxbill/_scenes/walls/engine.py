@@ -123,7 +123,8 @@ def turn(spin2: jax.Array, t: jax.Array):
     spin = jnp.sqrt(jnp.where(turning, spin2, 1.0))
     cos_spin, sin_spin = cos_sin(spin * t)
     cos = jnp.where(turning, cos_spin, 1.0)
-    sinc = jnp.where(turning, sin_spin / spin, t)
+    # 1/W is the same at every root step of a flight: a product, not a division, at each.
+    sinc = jnp.where(turning, sin_spin * (1.0 / spin), t)
     return cos, sinc
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from jaxtyping import ArrayLike
 
 from jaxbill._check.walls import ReducedWallsFlight
-from jaxbill._engine.step import components, stacked
+from jaxbill._engine.step import components, cos_sin, stacked
 from jaxbill._engine.validation import require_x64
 from jaxbill._scenes.protocols import SectionChart, chosen_section, component
 from jaxbill._scenes.walls import engine as walls
@@ -112,11 +112,11 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
 
     def end_gaps(self, state: tuple) -> tuple:
         """``(z1, z2, h - z1, h - z2)`` of the components."""
-        return walls.end_gaps(state[1], self.ell * jnp.cos(state[2]), self.h)
+        return walls.end_gaps(state[1], self.ell * cos_sin(state[2])[0], self.h)
 
     def end_approach_speeds(self, state: tuple) -> tuple:
         """The rates at which the four gaps close (> 0: that end approaches that wall)."""
-        return walls.end_gaps_closing(state[4], -self.ell * jnp.sin(state[2]) * state[5], 1.0)
+        return walls.end_gaps_closing(state[4], -self.ell * cos_sin(state[2])[1] * state[5], 1.0)
 
     def _flight(self, state: tuple, t) -> tuple:
         x, z, theta, vx, vz, omega = state
@@ -129,7 +129,8 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
     def vertical_profile(self, state):
         """``(z0, vz, A, D, W^2, ell, h)`` of ``jaxbill._scenes.walls.engine``: ``a = cos theta``."""
         theta, omega = state[2], state[5]
-        return (state[1], state[4], jnp.cos(theta), -omega * jnp.sin(theta), omega * omega, self.ell, self.h)
+        cos, sin = cos_sin(theta)
+        return (state[1], state[4], cos, -omega * sin, omega * omega, self.ell, self.h)
 
     def end_points(self, state: jax.Array) -> jax.Array:
         """Ends ``[P1, P2]`` as ``(x, z)``, shape ``(..., 2, 2)``."""
@@ -159,7 +160,7 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
         ``omega' = omega + s J / I``. Energy is conserved exactly.
         """
         x, z, theta, vx, vz, omega = state
-        lever = -walls.end_sign(gap) * self.ell * jnp.sin(theta)
+        lever = -walls.end_sign(gap) * self.ell * cos_sin(theta)[1]
         inv_mass = 1.0 / self.mass
         inv_inertia = 1.0 / self.inertia if self.kind == "rotor" else jnp.zeros_like(self.inertia)
         impulse = -2.0 * (vz + lever * omega) / (inv_mass + lever * lever * inv_inertia)

@@ -98,6 +98,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import orbit as _orbit
+from jaxbill._engine.step import cos_sin
 from jaxbill._engine.validation import MAX_STORED_COUNT, as_states, check_count, require_x64
 from jaxbill._scenes.circle.sections import _halton
 
@@ -331,11 +332,12 @@ def floor_state(
 def _floor_state(scene, theta, p, energy, spin):
     theta, p = jnp.broadcast_arrays(theta, p)
     theta_dot, vz, _ = _floor_velocity(scene, theta, p, energy, spin)
-    z = scene.ell * jnp.abs(jnp.cos(theta))
+    # The scene's own cosine and sine: the lower end then lies on the floor to the bit.
+    cos, sin = cos_sin(theta)
+    z = scene.ell * jnp.abs(cos)
     zero = jnp.zeros_like(theta)
     ok = jnp.isfinite(floor_section_bound(scene, theta, energy, spin)) & jnp.isfinite(vz)
     if _is_3d(scene):
-        sin, cos = jnp.sin(theta), jnp.cos(theta)
         u = jnp.stack([sin, zero, cos], axis=-1)
         # w = u x du/dt = theta_dot e_phi - sin(theta) phi_dot e_theta with e_phi = y,
         # e_theta = (cos, 0, -sin) and I sin^2(theta) phi_dot = spin.
