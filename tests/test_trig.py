@@ -80,3 +80,46 @@ def test_the_parts_of_a_quarter_turn():
         assert (mantissa * 2**22).is_integer()
     with mp.workdps(60):
         assert abs(sum(mpf(p) for p in PI_OVER_2_PARTS) - mp.pi / 2) < mpf(2) ** -118
+
+
+def _same_doubles(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return bool(np.all(((a == b) & (np.signbit(a) == np.signbit(b))) | (np.isnan(a) & np.isnan(b))))
+
+
+def test_remainder_by_two_pi_is_the_librarys_to_the_bit():
+    """``remainder_two_pi`` against ``jnp.remainder`` (a library ``fmod``), bit for bit: random angles up to
+    the limit, the doubles at and next to whole turns (where the quotient rounds to an integer), signed
+    zeros, subnormals and non-finite values."""
+    from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT, TWO_PI, remainder_two_pi
+
+    rng = np.random.default_rng(11)
+    turns = np.arange(-(2.0**26), 2.0**26, 6007.0) * TWO_PI
+    x = np.concatenate(
+        [
+            rng.uniform(-10.0, 10.0, 20000),
+            rng.uniform(-EXACT_REMAINDER_LIMIT, EXACT_REMAINDER_LIMIT, 20000),
+            10.0 ** rng.uniform(-320.0, 8.6, 20000) * rng.choice([-1.0, 1.0], 20000),
+            turns,
+            np.nextafter(turns, np.inf),
+            np.nextafter(turns, -np.inf),
+            [0.0, -0.0, 5e-324, -5e-324, TWO_PI, -TWO_PI, np.pi, -np.pi, np.inf, -np.inf, np.nan],
+            [np.nextafter(EXACT_REMAINDER_LIMIT, 0.0), -np.nextafter(EXACT_REMAINDER_LIMIT, 0.0)],
+        ]
+    )
+    ours = jax.jit(remainder_two_pi)(jnp.asarray(x))
+    library = jax.jit(lambda a: jnp.remainder(a, TWO_PI))(jnp.asarray(x))
+    assert _same_doubles(ours, library)
+
+
+def test_a_lockstep_batch_wraps_angles_as_the_library_does():
+    """``wrapped_angle`` in a lockstep batch (its own arithmetic, and the library's past the limit) gives
+    ``jnp.remainder(phi + pi, 2 pi) - pi`` to the bit, beyond the limit and for NaN too."""
+    from jaxbill._engine.step import vmapped_over_lanes, wrapped_angle
+    from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT
+
+    rng = np.random.default_rng(12)
+    for phis in (rng.uniform(-1e3, 1e3, 64), np.array([1.0, -3.0, 3.0 * EXACT_REMAINDER_LIMIT, np.nan])):
+        wrapped = jax.jit(vmapped_over_lanes(wrapped_angle, (0,)))(jnp.asarray(phis))
+        expected = jnp.remainder(jnp.asarray(phis) + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        assert _same_doubles(wrapped, expected)

@@ -16,7 +16,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 
 from jaxbill._engine.first_root import select
-from jaxbill._engine.step import computed_once, cos_sin, rarely, where
+from jaxbill._engine.step import computed_once, cos_sin, rarely, where, wrapped_angle
 from jaxbill._scenes.protocols import SEVERAL_CONTACTS
 
 END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
@@ -46,7 +46,7 @@ def flight(turns: bool, state: tuple, t) -> tuple:
     """
     x, y, alpha, vx, vy, omega = state
     if turns:
-        alpha = jnp.remainder(alpha + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        alpha = wrapped_angle(alpha + omega * t)
     return x + vx * t, y + vy * t, alpha, vx, vy, omega
 
 

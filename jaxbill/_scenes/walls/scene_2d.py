@@ -28,7 +28,7 @@ import numpy as np
 from jaxtyping import ArrayLike
 
 from jaxbill._check.walls import ReducedWallsFlight
-from jaxbill._engine.step import components, cos_sin, stacked
+from jaxbill._engine.step import components, cos_sin, stacked, wrapped_angle
 from jaxbill._engine.validation import require_x64
 from jaxbill._scenes.protocols import SectionChart, chosen_section, component
 from jaxbill._scenes.walls import engine as walls
@@ -121,7 +121,7 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
     def _flight(self, state: tuple, t) -> tuple:
         x, z, theta, vx, vz, omega = state
         if self.kind == "rotor":
-            theta = jnp.remainder(theta + omega * t + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+            theta = wrapped_angle(theta + omega * t)
         return x + vx * t, z + vz * t, theta, vx, vz, omega
 
     # -- geometry and flight -------------------------------------------------------
