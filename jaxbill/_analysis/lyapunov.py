@@ -106,9 +106,10 @@ def _descending(values: jax.Array) -> jax.Array:
     """``values`` sorted along the last axis, largest first and NaN last, as ``-jnp.sort(-values)``.
 
     By compare-and-swap rounds (odd-even transposition, ``K`` rounds sort ``K``
-    values; ties keep their order, as in ``jnp.sort``): elementwise work that XLA vectorises over the batch, where its
-    sort op ran 50x slower on the history of a batch, ``(B, H, K)``, and took a
-    fifth of a static lens's spectrum over 400 collisions with 100 checkpoints.
+    values; ties keep their order, as in ``jnp.sort``): elementwise work that
+    XLA vectorises over the batch, where its sort op ran 50x slower on the
+    history of a batch, ``(B, H, K)``, and took a fifth of a static lens's
+    spectrum over 400 collisions with 100 checkpoints.
     """
     rows = [values[..., i] for i in range(values.shape[-1])]
     for first in [i % 2 for i in range(len(rows))]:

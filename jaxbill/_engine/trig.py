@@ -97,16 +97,17 @@ def remainder_two_pi(x):
 
     The circle billiard's batch, whose collisions are a few dozen flops, ran
     1.47x faster with an inexact wrap (``x - 2 pi floor(x / 2 pi)``) than with
-    the library's ``fmod``, and 1.28x faster with this exact one. The remainder of ``|x|`` by ``TWO_PI`` is exact
-    here as in ``fmod``: ``turns * HIGH`` and ``turns * LOW`` are exact
-    products; ``|x| - turns * HIGH`` is a difference of multiples of
-    ``ulp(|x|)`` no larger than ``|x|``, so exact too; and the last
-    subtraction's exact value is the remainder itself, a double, which
-    rounding returns unchanged. A quotient rounded up to the next integer
-    leaves the remainder minus ``TWO_PI`` (a small negative double), put back
-    exactly; a correctly rounded quotient is never rounded below an integer.
-    Then, as ``jnp.remainder``, the sign of ``x`` and one ``TWO_PI`` added to a
-    negative result.
+    the library's ``fmod``, and 1.28x faster with this exact one.
+
+    The remainder of ``|x|`` by ``TWO_PI`` is exact here as in ``fmod``:
+    ``turns * HIGH`` and ``turns * LOW`` are exact products; ``|x| - turns *
+    HIGH`` is a difference of multiples of ``ulp(|x|)`` no larger than
+    ``|x|``, so exact too; and the last subtraction's exact value is the
+    remainder itself, a double, which rounding returns unchanged. A quotient
+    rounded up to the next integer leaves the remainder minus ``TWO_PI`` (a
+    small negative double), put back exactly; a correctly rounded quotient is
+    never rounded below an integer. Then, as ``jnp.remainder``, the sign of
+    ``x`` and one ``TWO_PI`` added to a negative result.
     """
     size = jnp.abs(x)
     turns = jnp.floor(size / TWO_PI)
