@@ -204,14 +204,13 @@ def straight_contact_time(gaps: tuple, closing_speeds: tuple):
 def resolve_contact(scene, state: tuple, index: jax.Array):
     """Apply the impulse of gap ``index``; a simultaneous contact of the other end too.
 
-    ``scene`` provides, on components, ``end_gaps``, ``end_approach_speeds``
-    and ``kick(state, gap)``. At most one gap per end can vanish (``h > 0``),
+    ``scene`` provides, on components, ``end_gaps_and_speeds`` and
+    ``kick(state, gap)``. At most one gap per end can vanish (``h > 0``),
     so a second contact is the other end on either wall: the faster-approaching
     of the two is kicked first, the other after it if it still approaches (as
     for a lens corner).
     """
-    gaps = scene.end_gaps(state)
-    speeds = scene.end_approach_speeds(state)
+    gaps, speeds = scene.end_gaps_and_speeds(state)
     other_end = jnp.where((index == 0) | (index == 2), 1, 0)
     # The other end's nearer wall.
     other = jnp.where(select(gaps, other_end) <= select(gaps, other_end + 2), other_end, other_end + 2)
@@ -242,7 +241,8 @@ class WallsEngine:
     """The engine's questions (``jaxbill._engine.step``), the same for the stick between walls in 2D and 3D.
 
     The scene provides ``kind``, ``vertical_profile``, ``end_gaps``,
-    ``end_approach_speeds`` and ``kick`` on components, and ``moved(state, t)``:
+    ``end_approach_speeds`` (or both at once, ``end_gaps_and_speeds``) and
+    ``kick`` on components, and ``moved(state, t)``:
     the free flight to ``t`` (renormalised where the state has constraints).
     """
 
@@ -264,7 +264,12 @@ class WallsEngine:
 
     def closed_form_contact(self, state: tuple, constants: None = None):
         """``(t, index)`` for a stick that never turns: every gap is linear in time."""
-        return straight_contact_time(self.end_gaps(state), self.end_approach_speeds(state))  # type: ignore[attr-defined]
+        return straight_contact_time(*self.end_gaps_and_speeds(state))
+
+    def end_gaps_and_speeds(self, state: tuple) -> tuple:
+        """``(end_gaps, end_approach_speeds)`` of the components; a scene whose two share work computes them
+        together (2D: one cosine and sine of ``theta``, where each took its own)."""
+        return self.end_gaps(state), self.end_approach_speeds(state)  # type: ignore[attr-defined]
 
     def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: None = None):
         """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``resolve_contact``)."""

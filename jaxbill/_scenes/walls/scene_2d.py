@@ -112,11 +112,19 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
 
     def end_gaps(self, state: tuple) -> tuple:
         """``(z1, z2, h - z1, h - z2)`` of the components."""
-        return walls.end_gaps(state[1], self.ell * cos_sin(state[2])[0], self.h)
+        return self.end_gaps_and_speeds(state)[0]
 
     def end_approach_speeds(self, state: tuple) -> tuple:
         """The rates at which the four gaps close (> 0: that end approaches that wall)."""
-        return walls.end_gaps_closing(state[4], -self.ell * cos_sin(state[2])[1] * state[5], 1.0)
+        return self.end_gaps_and_speeds(state)[1]
+
+    def end_gaps_and_speeds(self, state: tuple) -> tuple:
+        """``(end_gaps, end_approach_speeds)`` from one cosine and sine of ``theta``."""
+        cos, sin = cos_sin(state[2])
+        return (
+            walls.end_gaps(state[1], self.ell * cos, self.h),
+            walls.end_gaps_closing(state[4], -self.ell * sin * state[5], 1.0),
+        )
 
     def _flight(self, state: tuple, t) -> tuple:
         x, z, theta, vx, vz, omega = state
