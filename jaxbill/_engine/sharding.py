@@ -79,6 +79,24 @@ def to_mesh(array, mesh: Mesh, batched: bool) -> jax.Array:
     return jax.make_array_from_callback(array.shape, sharding, lambda index: array[index])
 
 
+def _shards_by_first_row(array: jax.Array) -> dict[int, jax.Shard]:
+    """This process's shards of a global array, one per first row (replicas along no other axis)."""
+    shards = {}
+    for shard in array.addressable_shards:
+        rows = shard.index[0] if shard.index else slice(None)
+        shards.setdefault(0 if rows.start is None else rows.start, shard)
+    return dict(sorted(shards.items()))
+
+
+def held_rows(array: jax.Array) -> np.ndarray:
+    """The indices of the rows (axis 0) of a global array that this process holds, in ``host_rows``'s
+    order, without reading them back (every row in one process)."""
+    if array.is_fully_addressable:
+        return np.arange(array.shape[0])
+    shards = _shards_by_first_row(array)
+    return np.concatenate([np.arange(start, start + shard.data.shape[0]) for start, shard in shards.items()])
+
+
 def host_rows(array: jax.Array) -> tuple[np.ndarray, np.ndarray]:
     """The rows (axis 0) of a global array that this process holds, and their indices.
 
@@ -89,15 +107,8 @@ def host_rows(array: jax.Array) -> tuple[np.ndarray, np.ndarray]:
     if array.is_fully_addressable:
         values = np.asarray(array)
         return values, np.arange(values.shape[0])
-    pieces = {}
-    for shard in array.addressable_shards:
-        rows = shard.index[0] if shard.index else slice(None)
-        start = 0 if rows.start is None else rows.start
-        pieces.setdefault(start, np.asarray(shard.data))  # replicas along no other axis: one per start
-    starts = sorted(pieces)
-    values = np.concatenate([pieces[s] for s in starts])
-    index = np.concatenate([np.arange(s, s + pieces[s].shape[0]) for s in starts])
-    return values, index
+    values = np.concatenate([np.asarray(shard.data) for shard in _shards_by_first_row(array).values()])
+    return values, held_rows(array)
 
 
 def shard_over_orbits(batched_function, mesh: Mesh, batched_args: tuple[bool, ...]):

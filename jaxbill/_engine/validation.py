@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import operator
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -184,14 +183,16 @@ def on_wall_not_inwards(gaps, speeds):
     return jnp.any((jnp.asarray(gaps) <= 0.0) & (jnp.asarray(speeds) >= 0.0), axis=-1)
 
 
-@eqx.filter_jit
+@jax.jit
 def _state_geometry(scene, state: jax.Array):
-    """Whether ``state``'s motion is representable, and its gaps and normal velocities: the scene's own
-    geometry, the same the collision map uses (jnp: no overflow warnings).
+    """Whether ``state``'s motion is representable, its gaps and normal velocities, and the gaps' unit:
+    the scene's own geometry, the same the collision map uses (jnp: no overflow warnings).
 
-    Compiled: op by op, these took 4 ms a call, more than an orbit of 1e4 collisions.
+    Compiled: op by op, these took 4 ms a call, more than an orbit of 1e4
+    collisions. ``jax.jit`` rather than ``eqx.filter_jit``: a scene's leaves
+    are all arrays, and the plain dispatch saves 0.15 ms of every ``jb.run``.
     """
-    return scene.motion_is_representable(state), scene.gaps(state), scene.approach_speeds(state)
+    return scene.motion_is_representable(state), scene.gaps(state), scene.approach_speeds(state), scene.gap_scale
 
 
 def check_state(scene, state) -> None:
@@ -202,14 +203,14 @@ def check_state(scene, state) -> None:
     if not np.all(np.isfinite(s)):
         raise ValueError("state must be finite: it contains NaN or inf")
     scene.check_state_values(s)
-    representable, gaps, speeds = (np.asarray(a) for a in _state_geometry(scene, jnp.asarray(s)))
+    representable, gaps, speeds, gap_scale = (np.asarray(a) for a in _state_geometry(scene, s))
     if not np.all(representable):
         raise ValueError(
             "state's velocities must have squares that float64 represents: |v|^2 and the energy "
             "(M |v|^2 + I omega^2) / 2 finite, |v|^2 not below 1e-308 unless v = 0; rescale the "
             f"unit of time. First offending state: {np.atleast_2d(s)[np.argmin(np.atleast_1d(representable))].tolist()}"
         )
-    wall = WALL_TOLERANCE * np.asarray(scene.gap_scale, dtype=np.float64)[..., None]
+    wall = WALL_TOLERANCE * gap_scale[..., None]
     for index, name in enumerate(scene.gap_names):
         outside = gaps[..., index] < -wall[..., 0]
         if np.any(outside):
