@@ -92,6 +92,33 @@ def test_collide_and_orbit_reject_bad_parameters_of_a_modified_scene(name, value
             jb.orbit(scene, GOOD, N)
 
 
+def test_a_scene_checked_once_still_catches_every_later_change():
+    """Scenes that passed their check are not checked again (``validation.check_scene``): a scene made
+    from a checked one by ``eqx.tree_at`` is checked afresh, a scene with a mutable numpy leaf at
+    every call, and the record of a checked scene goes with the scene."""
+    import gc
+
+    from jaxbill._engine import validation
+
+    scene = rotor()
+    jb.orbit(scene, GOOD, N)
+    assert id(scene) in validation._CHECKED_SCENES
+    with pytest.raises(ValueError, match=r"ell must be < R"):
+        jb.orbit(_with(scene, "ell", 2.5), GOOD, N)
+
+    ell = np.array(1.0)
+    mutable = eqx.tree_at(lambda s: s.ell, scene, ell)
+    jb.orbit(mutable, GOOD, N)
+    ell[...] = 2.5  # in place: the same scene object now holds a bad parameter
+    with pytest.raises(ValueError, match=r"ell must be < R"):
+        jb.orbit(mutable, GOOD, N)
+
+    key = id(scene)
+    del scene
+    gc.collect()
+    assert key not in validation._CHECKED_SCENES
+
+
 # ---------------------------------------------------------------------------
 # bad states (eager): jb.collide and jb.orbit
 # ---------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from jaxbill._engine.sharding import DeviceChoice, orbit_mesh, pad_batch, padded
 from jaxbill._engine.step import advance, advance_components, components, orbit_constants, stacked, vmapped_over_lanes
 from jaxbill._engine.validation import (
     check_orbit_length,
+    check_scene,
     check_state,
     check_state_static,
     check_unbatched_scene,
@@ -148,7 +149,7 @@ def _check_eagerly(scene, state, *, single: bool = False) -> None:
     check_unbatched_scene(scene)
     check_state_static(scene, state, single=single)
     if all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene)):
-        scene.check()
+        check_scene(scene)
         if is_concrete(state):
             check_state(scene, state)
 

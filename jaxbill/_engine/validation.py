@@ -9,6 +9,7 @@ they raise under ``jit`` too. *Value* checks run only on concrete input; inside
 from __future__ import annotations
 
 import operator
+import weakref
 
 import jax
 import jax.numpy as jnp
@@ -29,6 +30,33 @@ MAX_COUNT = 2**63 - 1
 
 def is_concrete(x) -> bool:
     return not isinstance(x, Tracer)
+
+
+# The scenes that passed ``scene.check()``, by identity: id -> weak reference.
+_CHECKED_SCENES: dict[int, weakref.ref] = {}
+
+
+def check_scene(scene) -> None:
+    """``scene.check()``, once per scene object.
+
+    A scene is a frozen ``equinox.Module``; with JAX arrays for leaves nothing
+    in it can change, and a scene with other leaves (``eqx.tree_at``) is a
+    new object. Checked at every call, its parameters cost 0.05 ms, and 0.4 ms
+    just after a long orbit had evicted the interpreter from the caches: 3%
+    of an orbit of 2e5 collisions of the lens.
+    """
+    key = id(scene)
+    known = _CHECKED_SCENES.get(key)
+    if known is not None and known() is scene:
+        return
+    scene.check()
+    if all(isinstance(leaf, jax.Array) for leaf in jax.tree_util.tree_leaves(scene)):
+
+        def forget(reference, key=key):
+            if _CHECKED_SCENES.get(key) is reference:
+                del _CHECKED_SCENES[key]
+
+        _CHECKED_SCENES[key] = weakref.ref(scene, forget)
 
 
 def check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
