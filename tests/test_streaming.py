@@ -282,6 +282,25 @@ def test_a_million_collisions_with_final_record_keep_host_memory_tiny():
     assert peak < 1_000_000, f"host allocations peaked at {peak} bytes"
 
 
+@pytest.mark.parametrize("seconds, chunks", [(0.0, 21), (float("inf"), 3)])
+def test_a_final_run_of_short_calls_grows_its_chunk_fourfold(monkeypatch, seconds, chunks):
+    """Default chunk of 4 collisions per orbit and 84 in all: with every call counted as short
+    (``SECONDS_PER_CHUNK`` infinite) the chunks are 4, 16 and 64; with none, 21 of 4. Either way the
+    final states and statistics are bitwise those of a run in one chunk."""
+    scene = lens()
+    states0 = states_for(scene, 5)
+    lanes = _streaming._Engine(scene, states0, None).lanes
+    monkeypatch.setattr(_streaming, "COLLISIONS_PER_CHUNK", 4 * lanes)
+    monkeypatch.setattr(_streaming, "SECONDS_PER_CHUNK", seconds)
+    result = run(scene, states0, 84)
+    whole = run(scene, states0, 84, chunk=84)
+    assert result.chunks == chunks and whole.chunks == 1
+    for field in ("final_state", "time", "max_energy_error", "contact_counts"):
+        assert np.array_equal(getattr(result, field), getattr(whole, field))
+    recorded = run(scene, states0, 84, record="states")  # records: the chunk stays as it is
+    assert recorded.chunks == 21
+
+
 def test_default_chunk_bounds_the_records_of_a_chunk():
     lanes, every, row_bytes = 1 << 20, 1, 8 * 8
     chunk = _streaming._default_chunk("states", lanes, every, row_bytes)

@@ -66,9 +66,14 @@ from jaxbill._runs.files import (
 CONTACT_CODES = tuple(range(-4, 5))
 
 # Default chunk: about this many collisions (all orbits together) per compiled
-# call, 0.2-4 s at the measured rates: long enough that the host round trip
-# between chunks costs nothing, short enough for a live progress bar.
+# call, 0.06-1.6 s at a CPU's measured rates: long enough that the host round
+# trip between chunks costs little, short enough for a live progress bar.
 COLLISIONS_PER_CHUNK = 1 << 22
+# A run that records nothing per collision (``record="final"``, default chunk)
+# quadruples its chunk after every call that took under a quarter of this: on a
+# GPU, 2**22 collisions over 2**20 orbits are 4 collisions per orbit, a few ms of
+# work per call. The chunk is a traced argument there, so nothing recompiles.
+SECONDS_PER_CHUNK = 1.0
 # Default bound on one chunk's records on the device (states or section points).
 RECORD_BYTES_PER_CHUNK = 1 << 26
 # A run directory's checkpoint is rewritten at most this often (and at the end).
@@ -758,7 +763,8 @@ def run(
         every: with ``record="states"``, record every ``every``-th collision.
         chunk: collisions per orbit per compiled call (default: about ``2**22``
             collisions over all orbits, with at most ``RECORD_BYTES_PER_CHUNK``
-            of records). Results do not depend on it.
+            of records; with ``record="final"`` it then grows 4x after every
+            call shorter than ``SECONDS_PER_CHUNK / 4``). Results do not depend on it.
         out: a directory to write the run into: ``.npy`` records (memory-mappable,
             written chunk by chunk, so host memory stays bounded) and
             ``checkpoint.npz`` (at the start, every ``CHECKPOINT_INTERVAL_S``, on
@@ -841,6 +847,8 @@ def _run_chunks(
     first = checkpoint.collisions if checkpoint else 0
 
     row_bytes = (state0.shape[-1] + 2) * 8 if kind == "states" else ((point.size + 2) * 8 if point else 0)
+    # Every process of a jax.distributed run must run the same chunks: no growth there.
+    grows = chunk is None and kind == "final" and jax.process_count() == 1
     if chunk is None:
         chunk = _default_chunk(kind, engine.lanes, every, row_bytes)
     rows = -(-chunk // every)  # records per orbit per chunk, whatever the phase
@@ -923,6 +931,7 @@ def _run_chunks(
 
     while done < n:
         steps = min(chunk, n - done)
+        started = time.perf_counter()
         new_carry, out_buffers = engine.run_chunk(plan, carry, done, steps)
         try:
             if kind == "section":
@@ -942,6 +951,8 @@ def _run_chunks(
             # carry and done are still those of the last complete chunk.
             raise write_failed(error, True) from error
         carry, done, chunks = new_carry, done + steps, chunks + 1
+        if grows and time.perf_counter() - started < SECONDS_PER_CHUNK / 4:
+            chunk *= 4
         bar.update(done)
         if out_dir is None:
             continue
