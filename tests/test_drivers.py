@@ -155,6 +155,28 @@ def test_a_lockstep_lane_at_a_corner_gets_both_impulses():
     assert counts[2] == 1
 
 
+class _LensCountingTwoCodes(jb.StickInCircle):
+    """A lens that lists only contacts 0 and 1: every other code must land in the last bin."""
+
+    @property
+    def contact_codes(self):
+        return (0, 1)
+
+
+@pytest.mark.parametrize("driver", ["serial", "lockstep", "lanes", "pallas"])
+def test_contact_counts_of_codes_a_scene_does_not_list_go_to_the_last_bin(driver):
+    scene = _LensCountingTwoCodes(R=2.0, ell=1.5, inertia=INF)
+    states = start_states(scene, 7)
+    contacts = np.asarray(jb.orbit(scene, states, 30, driver="lockstep").contact)
+    assert {-1, 1} <= set(np.unique(contacts))  # both ends touch: code -1 is not listed
+    run = jb.run(scene, states, 30, driver=driver)
+    code = {c: k for k, c in enumerate(_lanes.CONTACT_CODES)}
+    np.testing.assert_array_equal(run.contact_counts[:, code[1]], np.sum(contacts == 1, axis=1))
+    np.testing.assert_array_equal(run.contact_counts[:, code[0]], np.sum(contacts == 0, axis=1))
+    np.testing.assert_array_equal(run.contact_counts[:, -1], np.sum((contacts != 0) & (contacts != 1), axis=1))
+    assert np.all(np.delete(run.contact_counts, [code[0], code[1], -1], axis=1) == 0)
+
+
 def _lane_root_steps(scene, state):
     lane = _step.begin_flight(scene, state, scene.orbit_constants(state))
     lane = jax.lax.while_loop(

@@ -32,7 +32,15 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxbill._engine.lanes import CONTACT_CODES, PALLAS_BLOCK, Carry, fresh_carry
+from jaxbill._engine.lanes import (
+    CONTACT_CODES,
+    PALLAS_BLOCK,
+    Carry,
+    empty_tally,
+    fresh_carry,
+    tallied_codes,
+    tally_contact,
+)
 from jaxbill._engine.step import (
     begin_flight,
     end_and_begin,
@@ -74,7 +82,7 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
     constants = scene.orbit_constants(state0)
     energy0 = scene.energy(state0)
     energy_unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
-    codes = len(CONTACT_CODES)
+    codes = tallied_codes(scene)
 
     def not_finished(loop):
         return jnp.min(loop[5]) < steps
@@ -92,11 +100,7 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
         drift = jnp.abs(scene.energy(new_state) - energy0) / energy_unit
         # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
         error = jnp.where(collided, jnp.maximum(error, drift), error)
-        known = functools.reduce(jnp.logical_or, [contact == code for code in CONTACT_CODES])
-        counts = tuple(
-            counts[k] + (collided & ((contact == CONTACT_CODES[k]) if k < codes else ~known)).astype(jnp.int64)
-            for k in range(codes + 1)
-        )
+        counts = tally_contact(codes, counts, contact, collided)
         done = done + collided.astype(jnp.int32)
         if dynamical:
             vector, log_norm, fli = tangent
@@ -108,19 +112,24 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
 
     state = tuple(state_ref[i, :] for i in range(size))
     lane = _broadcast(begin_flight(scene, state, constants), block)
-    counts = tuple(counts_ref[k, :] for k in range(codes + 1))
+    counts = empty_tally(codes, (block,))
     tangent: tuple = ()
     if dynamical:
         vector_ref, log_norm_ref, fli_ref = refs[leaf_count + 6 : leaf_count + 9]
         tangent = (tuple(vector_ref[i, :] for i in range(size)), log_norm_ref[...], fli_ref[...])
     loop = (lane, state, time_ref[...], error_ref[...], counts, jnp.zeros((block,), jnp.int32), tangent)
-    _, state, time, error, counts, _, tangent = jax.lax.while_loop(not_finished, one_turn, loop)
+    _, state, time, error, counts, done, tangent = jax.lax.while_loop(not_finished, one_turn, loop)
     for i in range(size):
         state_out[i, :] = state[i]
     time_out[...] = time
     error_out[...] = error
-    for k in range(codes + 1):
-        counts_out[k, :] = counts[k]
+    # The chunk's tally added to the counts so far; other codes in the last row.
+    others = done.astype(jnp.int64)
+    for k, code in enumerate(CONTACT_CODES):
+        tallied = code in codes
+        counts_out[k, :] = counts_ref[k, :] + (counts[codes.index(code)] if tallied else 0)
+        others = others - (counts[codes.index(code)] if tallied else 0)
+    counts_out[len(CONTACT_CODES), :] = counts_ref[len(CONTACT_CODES), :] + others
     if dynamical:
         vector_out, log_norm_out, fli_out = refs[leaf_count + inputs + 4 :]
         for i in range(size):

@@ -34,6 +34,7 @@ from jaxtyping import ArrayLike, Float, Int
 
 from jaxbill._engine import lanes
 from jaxbill._engine.collision import _check_eagerly, _poison_if, step_function
+from jaxbill._engine.lanes import CONTACT_CODES
 from jaxbill._engine.pallas import pallas_final
 from jaxbill._engine.sharding import (
     ORBIT_AXIS,
@@ -59,11 +60,6 @@ from jaxbill._runs.files import (
     scene_parameters,
     scene_signature,
 )
-
-# Contact codes counted one by one in the running statistics: every scene's codes
-# lie in -4..4 (StickInCircle: -1, 0, 1, 2; the wall scenes add -3, 3). A code
-# outside is counted in one extra bin, so no collision goes uncounted.
-CONTACT_CODES = tuple(range(-4, 5))
 
 # Default chunk: about this many collisions (all orbits together) per compiled
 # call, 0.06-1.6 s at a CPU's measured rates: long enough that the host round
@@ -193,20 +189,28 @@ class _Plan:
     section: Section | None = None
 
 
-def _collider(scene, state0):
-    """``carry -> (carry, contact)``: one collision and the running statistics."""
+class _Running(NamedTuple):
+    """What one orbit carries from collision to collision inside a chunk: the carry, with the chunk's
+    contacts in a tally (``jaxbill._engine.lanes.tally_contact``)."""
+
+    state: jax.Array
+    time: jax.Array
+    max_energy_error: jax.Array
+    tally: tuple
+
+
+def _collider(scene, state0, codes: tuple[int, ...]):
+    """``running -> (running, contact)``: one collision and the running statistics."""
     advance = step_function(scene, state0)
     energy0 = scene.energy(state0)
     energy_unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
-    codes = jnp.asarray(CONTACT_CODES, dtype=jnp.int32)
 
-    def collide(carry: _Carry):
-        state, dt, contact = advance(carry.state)
+    def collide(c: _Running):
+        state, dt, contact = advance(c.state)
         drift = jnp.abs(scene.energy(state) - energy0) / energy_unit
-        is_code = contact == codes
-        counts = carry.contact_counts + jnp.append(is_code, ~jnp.any(is_code)).astype(jnp.int64)
+        tally = lanes.tally_contact(codes, c.tally, contact)
         # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
-        return _Carry(state, carry.time + dt, jnp.maximum(carry.max_energy_error, drift), counts), contact
+        return _Running(state, c.time + dt, jnp.maximum(c.max_energy_error, drift), tally), contact
 
     return collide
 
@@ -218,14 +222,20 @@ def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
     the last, shorter one included); ``plan`` is static. Returns the new carry
     and the chunk's records (see ``_Plan``).
     """
-    collide = _collider(scene, state0)
+    codes = lanes.tallied_codes(scene)
+    collide = _collider(scene, state0, codes)
     invalid = ~scene.is_valid(state0)  # later states come from the map itself
 
-    def skip(c: _Carry, count) -> _Carry:
+    def skip(c: _Running, count) -> _Running:
         return jax.lax.fori_loop(0, count, lambda _, c: collide(c)[0], c)
 
+    def finished(c: _Running) -> _Carry:
+        counts = lanes.add_tally(carry.contact_counts, codes, c.tally, steps)
+        return _Carry(c.state, c.time, c.max_energy_error, counts)
+
+    running = _Running(carry.state, carry.time, carry.max_energy_error, lanes.empty_tally(codes))
     if plan.record == "final":
-        return skip(carry, steps), ()
+        return finished(skip(running, steps)), ()
 
     if plan.record == "states":
         every, rows = plan.every, plan.rows
@@ -233,7 +243,7 @@ def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
         # of the whole run, so a chunk may begin anywhere between two of them:
         # skip to just before the next one, then record one and skip every - 1.
         head = jnp.minimum(steps, every - 1 - start % every)
-        carry = skip(carry, head)
+        running = skip(running, head)
         rest = steps - head
         groups = (rest + every - 1) // every
         buffers = (
@@ -250,8 +260,8 @@ def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
                 c = skip(c, jnp.minimum(every - 1, rest - g * every - 1))
             return c, buffers
 
-        carry, buffers = jax.lax.fori_loop(0, groups, record_group, (carry, buffers))
-        return carry, _poison_if(invalid, *buffers)
+        running, buffers = jax.lax.fori_loop(0, groups, record_group, (running, buffers))
+        return finished(running), _poison_if(invalid, *buffers)
 
     section, rows = plan.section, plan.rows
     assert section is not None  # a "section" plan carries its Section
@@ -273,11 +283,11 @@ def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
         buffers = (point.at[row].set(project(scene, c.state)), t.at[row].set(c.time), number.at[row].set(start + i + 1))
         return c, buffers, fill + keep.astype(jnp.int64)
 
-    carry, (point, t, number), fill = jax.lax.fori_loop(
-        0, steps, record_if_kept, (carry, buffers, jnp.zeros((), jnp.int64))
+    running, (point, t, number), fill = jax.lax.fori_loop(
+        0, steps, record_if_kept, (running, buffers, jnp.zeros((), jnp.int64))
     )
     point, t = _poison_if(invalid, point[:rows], t[:rows])
-    return carry, (point, t, number[:rows], fill)
+    return finished(running), (point, t, number[:rows], fill)
 
 
 def _lanes_chunk(plan: _Plan, width: int):

@@ -70,6 +70,16 @@ class Scene(Protocol):
         """The unit of the gaps, for ``WALL_TOLERANCE``."""
         ...
 
+    @property
+    def contact_codes(self) -> tuple[int, ...]:
+        """Every contact code its collisions can have, ``NO_CONTACT`` included.
+
+        Optional: ``jb.run`` counts these one by one and any other code in its
+        last bin (``jaxbill._engine.lanes.tallied_codes``); without it, all of
+        ``-4..4``, which costs the closed forms' batches up to a fifth of their speed.
+        """
+        ...
+
     def check(self) -> None:
         """Raise ValueError for invalid concrete parameters."""
         ...

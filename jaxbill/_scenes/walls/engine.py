@@ -19,6 +19,7 @@ from both walls, so the search jumps over that stretch of the flight.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -34,7 +35,7 @@ from jaxbill._engine.validation import (
     real_parameter,
 )
 from jaxbill._engine.validation import motion_is_representable as representable
-from jaxbill._scenes.protocols import SEVERAL_CONTACTS, WALL_TOLERANCE
+from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, WALL_TOLERANCE
 
 FLOOR = 1  # contact code of end P1 on the floor (P2: -1)
 CEILING = 3  # contact code of end P1 on the ceiling (P2: -3)
@@ -247,6 +248,9 @@ class WallsEngine:
     """
 
     kind: str  # declared for type checkers; the scene's own (static) field
+    # Every contact code of its collisions: none (0), P1/P2 on the floor (1, -1) or
+    # the ceiling (3, -3), both ends at once (2).
+    contact_codes: ClassVar[tuple[int, ...]] = (-CEILING, -FLOOR, NO_CONTACT, FLOOR, SEVERAL_CONTACTS, CEILING)
 
     @property
     def searches_for_roots(self) -> bool:
