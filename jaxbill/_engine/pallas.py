@@ -126,9 +126,9 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
     # The chunk's tally added to the counts so far; other codes in the last row.
     others = done.astype(jnp.int64)
     for k, code in enumerate(CONTACT_CODES):
-        tallied = code in codes
-        counts_out[k, :] = counts_ref[k, :] + (counts[codes.index(code)] if tallied else 0)
-        others = others - (counts[codes.index(code)] if tallied else 0)
+        tallied = counts[codes.index(code)] if code in codes else 0
+        counts_out[k, :] = counts_ref[k, :] + tallied
+        others = others - tallied
     counts_out[len(CONTACT_CODES), :] = counts_ref[len(CONTACT_CODES), :] + others
     if dynamical:
         vector_out, log_norm_out, fli_out = refs[leaf_count + inputs + 4 :]
