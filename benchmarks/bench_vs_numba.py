@@ -29,9 +29,10 @@ timed calls. numba's parallel loop runs on OpenMP threads, which by default
 spin for a while after each loop, on the cores the next contender needs (one
 ``jb.run`` call on two devices took 11.7 ms after numba's parallel loop, 7.8 ms
 after its serial one): the benchmark sets ``OMP_WAIT_POLICY=PASSIVE`` (unless
-set), which left numba's own two-thread time unchanged (15.1 ms and 15.0 ms). The ratio column is jaxbill's time over numba's (above 1: numba
-is faster). Nothing here asserts on timings; on a shared machine, read the
-load averages printed before and after.
+set), which left numba's own two-thread time unchanged (15.1 ms and 15.0 ms).
+The ratio column is jaxbill's time over numba's (above 1: numba is faster).
+Nothing here asserts on timings; on a shared machine, read the load averages
+printed before and after.
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbill._engine.sharding import orbit_mesh, shard_over_orbits
 from jaxbill._engine.step import (
@@ -104,7 +105,9 @@ def tally_contact(codes: tuple[int, ...], tally: tuple, contact: jax.Array, coll
     return tuple(count + (collided & (contact == code)).astype(jnp.int64) for count, code in zip(tally, codes))
 
 
-def add_tally(contact_counts: jax.Array, codes: tuple[int, ...], tally: tuple, collisions: Any) -> jax.Array:
+def add_tally(
+    contact_counts: jax.Array | np.ndarray, codes: tuple[int, ...], tally: tuple, collisions: Any
+) -> jax.Array:
     """``contact_counts`` ``(..., len(CONTACT_CODES) + 1)`` plus a chunk's ``tally`` of ``codes``, and its
     ``collisions`` of any other code (``collisions`` less the tally) in the last bin."""
     columns = [contact_counts[..., k] for k in range(len(CONTACT_CODES) + 1)]

@@ -93,8 +93,12 @@ def held_rows(array: jax.Array) -> np.ndarray:
     order, without reading them back (every row in one process)."""
     if array.is_fully_addressable:
         return np.arange(array.shape[0])
-    shards = _shards_by_first_row(array)
-    return np.concatenate([np.arange(start, start + shard.data.shape[0]) for start, shard in shards.items()])
+    ranges = []
+    for shard in _shards_by_first_row(array).values():
+        rows = shard.index[0] if shard.index else slice(None)
+        start, stop, _ = rows.indices(array.shape[0])
+        ranges.append(np.arange(start, stop))
+    return np.concatenate(ranges)
 
 
 def host_rows(array: jax.Array) -> tuple[np.ndarray, np.ndarray]:

@@ -193,9 +193,9 @@ class _Running(NamedTuple):
     """What one orbit carries from collision to collision inside a chunk: the carry, with the chunk's
     contacts in a tally (``jaxbill._engine.lanes.tally_contact``)."""
 
-    state: jax.Array
-    time: jax.Array
-    max_energy_error: jax.Array
+    state: jax.Array | np.ndarray
+    time: jax.Array | np.ndarray
+    max_energy_error: jax.Array | np.ndarray
     tally: tuple
 
 

@@ -48,7 +48,14 @@ __all__ = [
 
 
 class Scene(Protocol):
-    """The interface of a scene (a structural type: scenes do not inherit from it)."""
+    """The interface of a scene (a structural type: scenes do not inherit from it).
+
+    Optional, outside the protocol: ``contact_codes``, every contact code the
+    scene's collisions can have (``NO_CONTACT`` included). ``jb.run`` counts
+    those one by one and any other code in its last bin
+    (``jaxbill._engine.lanes.tallied_codes``); without it, all of ``-4..4``,
+    which costs the closed forms' batches up to a fifth of their speed.
+    """
 
     state_size: ClassVar[int]  # length of the state vector
     state_layout: ClassVar[str]  # e.g. "[x, y, alpha, vx, vy, omega]", for messages
@@ -68,16 +75,6 @@ class Scene(Protocol):
     @property
     def gap_scale(self) -> jax.Array:
         """The unit of the gaps, for ``WALL_TOLERANCE``."""
-        ...
-
-    @property
-    def contact_codes(self) -> tuple[int, ...]:
-        """Every contact code its collisions can have, ``NO_CONTACT`` included.
-
-        Optional: ``jb.run`` counts these one by one and any other code in its
-        last bin (``jaxbill._engine.lanes.tallied_codes``); without it, all of
-        ``-4..4``, which costs the closed forms' batches up to a fifth of their speed.
-        """
         ...
 
     def check(self) -> None:

@@ -17,9 +17,15 @@ import jax.numpy as jnp
 
 from jaxbill._engine.first_root import select
 from jaxbill._engine.step import computed_once, cos_sin, rarely, where, wrapped_angle
-from jaxbill._scenes.protocols import SEVERAL_CONTACTS
+from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS
 
 END_SIGNS = (1.0, -1.0)  # gap index 0 -> end P1 (+1), index 1 -> end P2 (-1)
+
+
+def contact_codes(point: bool) -> tuple[int, ...]:
+    """A scene's ``contact_codes``: none (0), end P1 or P2 (1, -1), both at once (2); a point only 1 and 0."""
+    return (NO_CONTACT, 1) if point else (-1, NO_CONTACT, 1, SEVERAL_CONTACTS)
+
 
 # A second end within this many ulps of the gap scale of the wall at a contact
 # touches it at the same instant (a corner): both impulses are applied in one event.

@@ -43,14 +43,7 @@ from jaxbill._scenes.circle.sections import (
     reduced_section,
     section_state,
 )
-from jaxbill._scenes.protocols import (
-    NO_CONTACT,
-    SEVERAL_CONTACTS,
-    WALL_TOLERANCE,
-    SectionChart,
-    chosen_section,
-    component,
-)
+from jaxbill._scenes.protocols import WALL_TOLERANCE, SectionChart, chosen_section, component
 
 # Orbits of a batch on a CPU run in lanes of this many, one lane after another: a
 # vmapped root search waits for its slowest orbit, a narrow lane leaves the vector
@@ -168,8 +161,7 @@ class StickInCircle(eqx.Module):
 
     @property
     def contact_codes(self) -> tuple[int, ...]:
-        """0 (no contact), 1 and -1 (end P1, P2), 2 (both ends at once); a point only 1 and 0."""
-        return (NO_CONTACT, 1) if self.kind == "circle" else (-1, NO_CONTACT, 1, SEVERAL_CONTACTS)
+        return stick.contact_codes(self.kind == "circle")
 
     def check_state_values(self, state: np.ndarray) -> None:
         R = np.asarray(self.R)

@@ -69,14 +69,7 @@ from jaxbill._engine.validation import (
 )
 from jaxbill._scenes import two_ended_stick as stick
 from jaxbill._scenes.ellipse.sections import ELLIPSE_CHART, SECTIONS, ellipse_section, ellipse_section_state
-from jaxbill._scenes.protocols import (
-    NO_CONTACT,
-    SEVERAL_CONTACTS,
-    WALL_TOLERANCE,
-    SectionChart,
-    chosen_section,
-    component,
-)
+from jaxbill._scenes.protocols import WALL_TOLERANCE, SectionChart, chosen_section, component
 from jaxbill._scenes.smooth_table import EllipseTable
 
 # Orbits per vectorised lane of a batch on a CPU (see the circle's). A turning stick's
@@ -211,8 +204,7 @@ class StickInEllipse(eqx.Module):
 
     @property
     def contact_codes(self) -> tuple[int, ...]:
-        """0 (no contact), 1 and -1 (end P1, P2), 2 (both ends at once); a point only 1 and 0."""
-        return (NO_CONTACT, 1) if self.kind == "point" else (-1, NO_CONTACT, 1, SEVERAL_CONTACTS)
+        return stick.contact_codes(self.kind == "point")
 
     def check_state_values(self, state: np.ndarray) -> None:
         a = np.asarray(self.a)
