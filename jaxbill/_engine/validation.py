@@ -42,8 +42,9 @@ def check_scene(scene) -> None:
     A scene is a frozen ``equinox.Module``; with JAX arrays for leaves nothing
     in it can change, and a scene with other leaves (``eqx.tree_at``) is a
     new object. Checked at every call, its parameters cost 0.05 ms, and 0.4 ms
-    just after a long orbit had evicted the interpreter from the caches: 3%
-    of an orbit of 2e5 collisions of the lens.
+    just after a long orbit had evicted the interpreter from the caches: the
+    lens's and the circle's orbits of 2e5 collisions ran 1.5-2.5% faster
+    without it.
     """
     key = id(scene)
     known = _CHECKED_SCENES.get(key)
