@@ -10,7 +10,8 @@ the stick in an ellipse (a = 2, b = 1.4, ell = 0.5; jaxbill only, the numba
 kernel has no ellipse), for each batch size, in this one process:
 
 - the numba CUDA kernel (one thread per orbit, state in registers): final states;
-- ``jb.run(..., driver="pallas")``: final states and statistics, one Pallas kernel;
+- ``jb.run(..., driver="pallas")``: final states and statistics, one Pallas kernel
+  per compiled call (the calls it took in brackets: its chunk grows on short calls);
 - ``jb.run(..., driver="lanes")``: the XLA state machine, final states;
 - ``jb.run(..., record="states", every=100)`` (the lanes driver: Pallas records no states);
 - ``jb.orbit`` of the batch (every state recorded; lanes driver), at the smallest size only;
@@ -117,8 +118,11 @@ def main():
                 peer = collisions / median
                 steps = result[-1][3].sum() / max(result[-1][2].sum(), 1)
                 rows.append(("numba CUDA kernel", first, median))
+            pallas_calls = []  # compiled calls (chunks) per jb.run: the chunk grows on short calls
             contenders = {
-                "jb.run final, pallas": lambda: jb.run(scene, states, n, driver="pallas", progress=False),
+                "jb.run final, pallas": lambda: pallas_calls.append(
+                    jb.run(scene, states, n, driver="pallas", progress=False).chunks
+                ),
                 "jb.run final, lanes": lambda: jb.run(scene, states, n, driver="lanes", progress=False),
                 "jb.run states every 100": lambda: jb.run(scene, states, n, record="states", every=100, progress=False),
             }
@@ -147,6 +151,10 @@ def main():
                 # The lockstep driver is there for scale only: one timed call (about 30 s for a
                 # spinning stick on an H200).
                 rows.append((name, *timed(function, 1 if "lockstep" in name else args.rounds)))
+            rows = [
+                (f"{name} ({pallas_calls[-1]} calls)" if name.endswith("pallas") else name, *times)
+                for name, *times in rows
+            ]
             for name, first, median in rows:
                 ratio = f"{collisions / median / peer:.2f}" if peer else "n/a"
                 print(
