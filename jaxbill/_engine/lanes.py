@@ -110,15 +110,25 @@ def add_tally(
 ) -> jax.Array:
     """``contact_counts`` ``(..., len(CONTACT_CODES) + 1)`` plus a chunk's ``tally`` of ``codes``, and its
     ``collisions`` of any other code (``collisions`` less the tally) in the last bin."""
-    columns = [contact_counts[..., k] for k in range(len(CONTACT_CODES) + 1)]
+    bins = [contact_counts[..., k] for k in range(len(CONTACT_CODES) + 1)]
+    return jnp.stack(add_tally_to_bins(bins, codes, tally, collisions), axis=-1)
+
+
+def add_tally_to_bins(bins: list, codes: tuple[int, ...], tally: tuple, collisions: Any) -> list:
+    """``add_tally`` on the counts as a list of bins (one array per bin: a Pallas kernel's rows)."""
+    bins = list(bins)
     for code, count in zip(codes, tally):
-        columns[CONTACT_CODES.index(code)] = columns[CONTACT_CODES.index(code)] + count
-    columns[-1] = columns[-1] + (collisions - sum(tally, jnp.zeros((), jnp.int64)))
-    return jnp.stack(columns, axis=-1)
+        bins[CONTACT_CODES.index(code)] = bins[CONTACT_CODES.index(code)] + count
+    bins[-1] = bins[-1] + (collisions - sum(tally, jnp.zeros((), jnp.int64)))
+    return bins
 
 
-def energy_drift(scene, state0: jax.Array):
-    """``state -> |E - E0| / |E0|`` for the orbit from ``state0`` (``|E - E0|`` when ``E0 = 0``)."""
+def energy_drift(scene, state0):
+    """``state -> |E - E0| / |E0|`` for the orbit from ``state0`` (``|E - E0|`` when ``E0 = 0``).
+
+    ``state0``: a state ``(..., S)`` or its components (orbits of a block at
+    once); ``E0`` and its unit are computed here, once per chunk.
+    """
     energy0 = scene.energy(state0)
     unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
     return lambda state: jnp.abs(scene.energy(state) - energy0) / unit
@@ -201,7 +211,7 @@ def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, 
     """``run_block``'s loop, traced without conditionals (``jaxbill._engine.step.without_conditionals``)."""
     width = states0.shape[0]
     constants = jax.vmap(lambda s: orbit_constants(scene, s))(states0)
-    drift = jax.vmap(lambda s0, s: energy_drift(scene, s0)(s))
+    drift = energy_drift(scene, states0)
     end_and_begin_lanes = jax.vmap(lambda lane, active, c: end_and_begin(scene, lane, active, c))
     step_lanes = jax.vmap(lambda lane: search_step(scene, lane))
     record = jax.vmap(
@@ -220,7 +230,7 @@ def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, 
             time=jnp.where(collided, carry.time + dt, carry.time),
             # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
             max_energy_error=jnp.where(
-                collided, jnp.maximum(carry.max_energy_error, drift(states0, new_state)), carry.max_energy_error
+                collided, jnp.maximum(carry.max_energy_error, drift(new_state)), carry.max_energy_error
             ),
             contact_counts=carry.contact_counts,  # the chunk's collisions are tallied apart
         )

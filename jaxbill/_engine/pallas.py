@@ -36,7 +36,9 @@ from jaxbill._engine.lanes import (
     CONTACT_CODES,
     PALLAS_BLOCK,
     Carry,
+    add_tally_to_bins,
     empty_tally,
+    energy_drift,
     fresh_carry,
     tallied_codes,
     tally_contact,
@@ -80,8 +82,7 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
     steps = steps_ref[0]
     state0 = tuple(states0_ref[i, :] for i in range(size))
     constants = scene.orbit_constants(state0)
-    energy0 = scene.energy(state0)
-    energy_unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
+    drift_of = energy_drift(scene, state0)
     codes = tallied_codes(scene)
 
     def not_finished(loop):
@@ -97,7 +98,7 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
         lane = _broadcast(lane, block)
         state = where(collided, new_state, state)
         time = jnp.where(collided, time + dt, time)
-        drift = jnp.abs(scene.energy(new_state) - energy0) / energy_unit
+        drift = drift_of(new_state)
         # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
         error = jnp.where(collided, jnp.maximum(error, drift), error)
         counts = tally_contact(codes, counts, contact, collided)
@@ -123,13 +124,9 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
         state_out[i, :] = state[i]
     time_out[...] = time
     error_out[...] = error
-    # The chunk's tally added to the counts so far; other codes in the last row.
-    others = done.astype(jnp.int64)
-    for k, code in enumerate(CONTACT_CODES):
-        tallied = counts[codes.index(code)] if code in codes else 0
-        counts_out[k, :] = counts_ref[k, :] + tallied
-        others = others - tallied
-    counts_out[len(CONTACT_CODES), :] = counts_ref[len(CONTACT_CODES), :] + others
+    so_far = [counts_ref[k, :] for k in range(len(CONTACT_CODES) + 1)]
+    for k, row in enumerate(add_tally_to_bins(so_far, codes, counts, done.astype(jnp.int64))):
+        counts_out[k, :] = row
     if dynamical:
         vector_out, log_norm_out, fli_out = refs[leaf_count + inputs + 4 :]
         for i in range(size):

@@ -202,12 +202,11 @@ class _Running(NamedTuple):
 def _collider(scene, state0, codes: tuple[int, ...]):
     """``running -> (running, contact)``: one collision and the running statistics."""
     advance = step_function(scene, state0)
-    energy0 = scene.energy(state0)
-    energy_unit = jnp.where(energy0 == 0, 1.0, jnp.abs(energy0))
+    drift_of = lanes.energy_drift(scene, state0)
 
     def collide(c: _Running):
         state, dt, contact = advance(c.state)
-        drift = jnp.abs(scene.energy(state) - energy0) / energy_unit
+        drift = drift_of(state)
         tally = lanes.tally_contact(codes, c.tally, contact)
         # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
         return _Running(state, c.time + dt, jnp.maximum(c.max_energy_error, drift), tally), contact
