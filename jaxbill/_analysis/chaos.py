@@ -20,7 +20,7 @@ from jaxbill._analysis.lyapunov import grown, log_of, no_growth
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
 from jaxbill._engine.step import orbit_constants
-from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.tangent import dynamical_size, push_frame
 from jaxbill._engine.validation import check_count
 from jaxbill._scenes.protocols import SamplesStates, Scene
 
@@ -46,9 +46,8 @@ def _ftle_one(scene, state0, n, vector0):
 
     def step(carry, _):
         state, v, growth, t = carry
-        vectors = to_state_space(scene, state, v[:, None])
-        state, dt, _, vectors = push_forward(scene, state, vectors, flow=True, constants=constants)
-        v = to_dynamical(scene, state, vectors)[:, 0]
+        state, dt, _, pushed = push_frame(scene, state, v[:, None], flow=True, constants=constants)
+        v = pushed[:, 0]
         norm = jnp.linalg.norm(v)
         return (state, v / norm, grown(growth, norm), t + dt), None
 

@@ -70,7 +70,7 @@ from jaxbill._engine import pallas
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
 from jaxbill._engine.step import orbit_constants
-from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.tangent import dynamical_size, push_frame, to_dynamical, to_state_space
 from jaxbill._engine.validation import (
     MAX_STORED_COUNT,
     check_count,
@@ -206,9 +206,8 @@ def _indicators_one(scene, state0, tangent0, n, per, n_history):
 
     def collision(carry, _):
         state, v, t, k, sums = carry
-        vectors = to_state_space(scene, state, v[:, None])
-        state, dt, _, vectors = push_forward(scene, state, vectors, flow=flow, constants=constants)
-        v = to_dynamical(scene, state, vectors)[:, 0]
+        state, dt, _, pushed = push_frame(scene, state, v[:, None], flow=flow, constants=constants)
+        v = pushed[:, 0]
         stretch = jnp.linalg.norm(v)
         t, k = t + dt, k + 1
         tau = t if flow else k.astype(jnp.float64)

@@ -11,7 +11,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 from jaxbill._engine.collision import _check_eagerly, _poison_if
 from jaxbill._engine.lanes import map_over_orbits
 from jaxbill._engine.step import orbit_constants
-from jaxbill._engine.tangent import dynamical_size, push_forward, to_dynamical, to_state_space
+from jaxbill._engine.tangent import dynamical_size, push_frame
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
 from jaxbill._scenes.protocols import Scene
 
@@ -128,9 +128,8 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0):
         # The frame's coordinates in the dynamical directions at the current
         # state, carried to those at the next one (jaxbill._engine.tangent).
         state, q, t = carry
-        vectors = to_state_space(scene, state, q)
-        state, dt, _, vectors = push_forward(scene, state, vectors, flow=flow, constants=constants)
-        return (state, to_dynamical(scene, state, vectors), t + dt), None
+        state, dt, _, q = push_frame(scene, state, q, flow=flow, constants=constants)
+        return (state, q, t + dt), None
 
     def qr_step(carry, _):
         state, q, t, growth = carry

@@ -59,7 +59,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import _collide
-from jaxbill._engine.step import advance, orbit_constants
+from jaxbill._engine.step import advance, advance_components, components, orbit_constants, stacked
 from jaxbill._engine.validation import check_state_static, check_unbatched_scene, require_x64
 from jaxbill._scenes.protocols import Scene
 
@@ -225,6 +225,45 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
 
     new_vectors = jax.vmap(push, in_axes=1, out_axes=1)(vectors)
     return new_state, dt, contact, new_vectors
+
+
+def push_frame(scene: Scene, state: jax.Array, coefficients: jax.Array, *, flow: bool, constants: Any = None):
+    """``push_forward`` of a frame given by its coordinates ``(k, m)`` in the dynamical directions
+    (``to_state_space``), returned the same way at the new state (``to_dynamical``).
+
+    Returns ``(new_state, dt, contact, new_coefficients)``, ``new_coefficients``
+    of shape ``(k, m)``. Where the dynamical directions are coordinate axes,
+    only those coordinates are differentiated: the others (the static lens's
+    and the circle's ``alpha`` and ``omega``) get no tangent at all, where
+    zero tangents would be carried through every operation of the collision
+    (a spectrum of the circle billiard 1.2x faster, the static lens 1.1x; the
+    same values to the bit, since those zeros only ever added zero).
+    """
+    indices = getattr(scene, "dynamical_indices", None)
+    if indices is None:
+        vectors = to_state_space(scene, state, coefficients)
+        new_state, dt, contact, vectors = push_forward(scene, state, vectors, flow=flow, constants=constants)
+        return new_state, dt, contact, to_dynamical(scene, new_state, vectors)
+    parts = components(state)
+
+    def map_of_dynamical(dynamical):
+        given = dict(zip(indices, dynamical, strict=True))
+        start = tuple(given.get(i, part) for i, part in enumerate(parts))
+        orbit = scene.orbit_constants(start) if constants is None else constants
+        new_parts, dt, contact = advance_components(scene, start, orbit)
+        return (new_parts, dt), contact
+
+    (new_parts, dt), linear, contact = jax.linearize(map_of_dynamical, tuple(parts[i] for i in indices), has_aux=True)
+    new_state = stacked(new_parts)
+    velocity = cast(_Flows, scene).phase_velocity(new_state) if flow else None
+
+    def push(column):
+        d_parts, d_time = linear(tuple(column[row] for row in range(len(indices))))
+        if velocity is not None:
+            return jnp.stack([d_parts[i] - velocity[i] * d_time for i in indices])
+        return jnp.stack([d_parts[i] for i in indices])
+
+    return new_state, dt, contact, jax.vmap(push, in_axes=1, out_axes=1)(coefficients)
 
 
 def tangent_map(
