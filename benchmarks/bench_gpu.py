@@ -48,6 +48,16 @@ def gpu_present() -> bool:
 
 
 def timed(function, rounds):
+    """``(compile and first call, median of rounds)`` in seconds; ``(nan, nan)`` with the error printed
+    if the call fails (one failing contender must not cost the rest of a GPU lease)."""
+    try:
+        return _timed(function, rounds)
+    except Exception as error:  # reported, and the table goes on
+        print(f"<!-- failed: {type(error).__name__}: {str(error)[:400]} -->", flush=True)
+        return float("nan"), float("nan")
+
+
+def _timed(function, rounds):
     started = time.perf_counter()
     function()
     compile_and_first = time.perf_counter() - started
@@ -64,6 +74,26 @@ def main():
     parser.add_argument("--orbits", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
     parser.add_argument("--collisions", type=int, default=200)
     parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--no-lockstep", action="store_true", help="leave out the lockstep driver (30 s a call)")
+    parser.add_argument(
+        "--variants",
+        type=int,
+        default=0,
+        metavar="ORBITS",
+        help="first, the bare kernel's tuning (block, warps, rare branch by block) on this many orbits",
+    )
+    parser.add_argument(
+        "--breakdown",
+        type=int,
+        default=0,
+        metavar="ORBITS",
+        help="first, where jb.run's time goes (pallas driver) on this many orbits, and the raw transfers",
+    )
+    parser.add_argument("--skip-main", action="store_true", help="only the kernel variants and the breakdown")
+    parser.add_argument(
+        "--final-only", action="store_true", help="in the main table, only numba, jb.run (pallas) and the bare kernel"
+    )
+    parser.add_argument("--scenes", nargs="+", help="the main table's scenes (label prefixes, e.g. 'rotor ell=1.9')")
     args = parser.parse_args()
     if not gpu_present():
         print(
@@ -82,6 +112,12 @@ def main():
     device = jax.devices()[0]
     print(f"# jaxbill on {device.device_kind} ({jax.__version__}), float64, {n} collisions per orbit")
     print()
+    if args.variants:
+        kernel_variants(jb, baseline, cuda_baseline, args.variants, n, args.rounds)
+    if args.breakdown:
+        run_breakdown(jb, baseline, args.breakdown, n, args.rounds)
+    if args.skip_main:
+        return 0
     scenes = {
         "rotor ell=1.9": baseline.circle_params(2.0, 1.9),
         "rotor ell=1.0": baseline.circle_params(2.0, 1.0),
@@ -94,6 +130,8 @@ def main():
         "| root steps / collision |"
     )
     print("|---|---:|---|---:|---:|---:|---:|---:|")
+    if args.scenes:
+        scenes = {k: v for k, v in scenes.items() if any(k.startswith(prefix) for prefix in args.scenes)}
     for label, params in scenes.items():
         if params is None:
             scene = jb.StickInEllipse(2.0, 1.4, 0.5)
@@ -116,7 +154,8 @@ def main():
                     lambda: result.append(cuda_baseline.run_batch_cuda(params, states, n)), args.rounds
                 )
                 peer = collisions / median
-                steps = result[-1][3].sum() / max(result[-1][2].sum(), 1)
+                if result:
+                    steps = result[-1][3].sum() / max(result[-1][2].sum(), 1)
                 rows.append(("numba CUDA kernel", first, median))
             pallas_calls = []  # compiled calls (chunks) per jb.run: the chunk grows on short calls
             contenders = {
@@ -126,12 +165,16 @@ def main():
                 "jb.run final, lanes": lambda: jb.run(scene, states, n, driver="lanes", progress=False),
                 "jb.run states every 100": lambda: jb.run(scene, states, n, record="states", every=100, progress=False),
             }
-            if orbits == min(args.orbits):
+            contenders["bare kernel, final (one call)"] = bare_kernel(scene, states, n)
+            if args.final_only:
+                contenders = {k: v for k, v in contenders.items() if "pallas" in k or "bare" in k}
+            elif orbits == min(args.orbits):
                 contenders["jb.orbit (every state)"] = lambda: jax.block_until_ready(jb.orbit(scene, states, n).state)
-                contenders["jb.run final, lockstep"] = lambda: jb.run(
-                    scene, states, n, driver="lockstep", progress=False
-                )
-            if hasattr(scene, "dynamical_indices"):  # the kernel's tangent lives in state coordinates
+                if not args.no_lockstep:
+                    contenders["jb.run final, lockstep"] = lambda: jb.run(
+                        scene, states, n, driver="lockstep", progress=False
+                    )
+            if hasattr(scene, "dynamical_indices") and not args.final_only:  # tangent in state coordinates
                 from jaxbill._engine import pallas as _pallas
                 from jaxbill._engine.lanes import PALLAS_BLOCK
                 from jaxbill._engine.sharding import pad_batch
@@ -152,17 +195,149 @@ def main():
                 # spinning stick on an H200).
                 rows.append((name, *timed(function, 1 if "lockstep" in name else args.rounds)))
             rows = [
-                (f"{name} ({pallas_calls[-1]} calls)" if name.endswith("pallas") else name, *times)
+                (f"{name} ({pallas_calls[-1]} calls)" if name.endswith("pallas") and pallas_calls else name, *times)
                 for name, *times in rows
             ]
             for name, first, median in rows:
                 ratio = f"{collisions / median / peer:.2f}" if peer else "n/a"
                 print(
                     f"| {label} | {orbits} | {name} | {first:.2f} | {median:.4f} | {collisions / median:.3g} "
-                    f"| {ratio} | {steps:.2f} |"
+                    f"| {ratio} | {steps:.2f} |",
+                    flush=True,
                 )
-    fli_map_timing(jb, args.rounds)
+    try:
+        fli_map_timing(jb, args.rounds)
+    except Exception as error:  # reported at the end of the table
+        print(f"FLI map failed: {type(error).__name__}: {str(error)[:400]}")
     return 0
+
+
+def bare_kernel(scene, states, n, **tuning):
+    """A function of no argument: ``pallas_final`` over ``states`` (padded to whole blocks, on the
+    device already), ``n`` collisions in one call, waited for."""
+    from jaxbill._engine import lanes
+    from jaxbill._engine.pallas import pallas_final
+    from jaxbill._engine.sharding import pad_batch
+
+    block = tuning.get("block", lanes.PALLAS_BLOCK)
+    padded = jax.numpy.asarray(pad_batch(states, -(-len(states) // block) * block))
+    carry = lanes.fresh_carry(scene, padded)
+    kernel = jax.jit(lambda s, c: pallas_final(scene, s, c, n, **tuning).state)
+    return lambda: jax.block_until_ready(kernel(padded, carry))
+
+
+def kernel_variants(jb, baseline, cuda_baseline, orbits, n, rounds):
+    """The bare kernel (``pallas_final``, one call) at several tunings, beside the numba CUDA kernel;
+    and with its bookkeeping (energy drift, contact tally) left out, to see what that costs."""
+    from jaxbill._engine import pallas
+
+    tunings = [
+        dict(block=32, num_warps=1, rare_by_block=False),
+        dict(block=32, num_warps=1, rare_by_block=True),
+        dict(block=64, num_warps=2, rare_by_block=False),
+        dict(block=64, num_warps=1, rare_by_block=False),
+        dict(block=128, num_warps=4, rare_by_block=False),
+        dict(block=128, num_warps=2, rare_by_block=False),
+        dict(block=16, num_warps=1, rare_by_block=False),
+    ]
+    print(f"## The bare kernel's tuning, {orbits} orbits x {n} collisions (medians of {rounds}; ratio to numba CUDA)")
+    print()
+    print("| scene | kernel | compile + first s | median s | collisions/s | ratio |")
+    print("|---|---|---:|---:|---:|---:|")
+    scenes = {
+        "rotor ell=1.9": baseline.circle_params(2.0, 1.9),
+        "lens ell=1.5": baseline.circle_params(2.0, 1.5, inertia=float("inf")),
+        "walls h=3 ell=1": baseline.walls_params(3.0, 1.0),
+    }
+    for label, params in scenes.items():
+        scene = baseline.jaxbill_scene(params)
+        states = baseline.random_states(params, orbits, seed=5)
+        collisions = orbits * n
+        first, median = timed(lambda: cuda_baseline.run_batch_cuda(params, states, n), rounds)
+        peer = collisions / median
+        rows = [("numba CUDA kernel", first, median)]
+        for tuning in tunings:
+            name = ", ".join(f"{k} {v}" for k, v in tuning.items())
+            rows.append((name, *timed(bare_kernel(scene, states, n, **tuning), rounds)))
+        # The same kernel with its bookkeeping left out (its results then lack drift and tally).
+        saved = pallas.energy_drift, pallas.tally_contact
+        pallas.energy_drift = lambda scene, state0: lambda state: jax.numpy.zeros_like(state[0])
+        pallas.tally_contact = lambda codes, counts, contact, collided: counts
+        try:
+            rows.append(("block 32, no drift or tally", *timed(bare_kernel(scene, states, n), rounds)))
+        finally:
+            pallas.energy_drift, pallas.tally_contact = saved
+        for name, first, median in rows:
+            rate = collisions / median
+            print(f"| {label} | {name} | {first:.2f} | {median:.4f} | {rate:.3g} | {rate / peer:.2f} |", flush=True)
+    print()
+
+
+def run_breakdown(jb, baseline, orbits, n, rounds):
+    """Where ``jb.run``'s time goes (pallas driver, final states) beside the raw transfers it makes."""
+    import collections
+    import functools
+
+    from jaxbill._runs import streaming
+
+    spent = collections.defaultdict(list)
+    originals = {}
+
+    def timer(owner, name, label, wait=False):
+        function = getattr(owner, name)
+        originals[owner, name] = function
+
+        @functools.wraps(function)
+        def timed_part(*args, **kwargs):
+            started = time.perf_counter()
+            result = function(*args, **kwargs)
+            if wait:
+                jax.block_until_ready(result)
+            spent[label].append(time.perf_counter() - started)
+            return result
+
+        setattr(owner, name, timed_part)
+
+    timer(streaming, "_check_eagerly", "checks (state validation)")
+    timer(streaming._Engine, "__init__", "engine: pad, states to the device")
+    timer(streaming._Engine, "initial_carry", "initial carry")
+    timer(streaming._Engine, "run_chunk", "chunks (kernel calls, waited for)", wait=True)
+    timer(streaming._Engine, "to_host", "results to the host")
+    print(f"## Where jb.run's time goes, {orbits} orbits x {n} collisions, pallas driver (medians of {rounds})")
+    print()
+    print("| scene | part | ms |")
+    print("|---|---|---:|")
+    try:
+        for label, params in {
+            "rotor ell=1.9": baseline.circle_params(2.0, 1.9),
+            "lens ell=1.5": baseline.circle_params(2.0, 1.5, inertia=float("inf")),
+        }.items():
+            scene = baseline.jaxbill_scene(params)
+            states = baseline.random_states(params, orbits, seed=5)
+            jb.run(scene, states, n, driver="pallas", progress=False)
+            spent.clear()
+            totals = []
+            for _ in range(rounds):
+                started = time.perf_counter()
+                jb.run(scene, states, n, driver="pallas", progress=False)
+                totals.append(time.perf_counter() - started)
+            for part, times in spent.items():
+                per_run = [sum(times[i::rounds]) for i in range(rounds)] if len(times) > rounds else times
+                print(f"| {label} | {part} ({len(times) // rounds} calls) | {1e3 * statistics.median(per_run):.1f} |")
+            print(f"| {label} | jb.run in all | {1e3 * statistics.median(totals):.1f} |", flush=True)
+    finally:
+        for (owner, name), function in originals.items():
+            setattr(owner, name, function)
+    host = np.random.default_rng(0).standard_normal((orbits, 6))
+    device = jax.numpy.asarray(host)
+    counts = jax.numpy.zeros((orbits, 10), jax.numpy.int64)
+    for what, function in {
+        f"device_put of ({orbits}, 6) float64": lambda: jax.block_until_ready(jax.device_put(host)),
+        f"({orbits}, 6) float64 to the host": lambda: np.asarray(device + 0.0),
+        f"({orbits}, 10) int64 to the host": lambda: np.asarray(counts + 1),
+    }.items():
+        print(f"| transfer | {what} | {1e3 * timed(function, rounds)[1]:.1f} |")
+    print(flush=True)
 
 
 def fli_map_timing(jb, rounds, side=1024, collisions=1000):

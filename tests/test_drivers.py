@@ -304,6 +304,37 @@ def test_pallas_kernel_matches_the_xla_state_machine_collision_by_collision(name
         states = xla.state
 
 
+@pytest.mark.parametrize(
+    "name, corner",
+    [
+        ("rotor 1.9", [0.0, 0.0, 0.0, 0.0, 1.0, 0.0]),
+        ("lens", [0.0, 0.0, 0.0, 0.0, 1.0, 0.0]),
+        ("walls 2D", [0.0, 1.5, np.pi / 2, 0.2, 1.0, 0.0]),
+    ],
+)
+def test_pallas_rare_side_computed_by_block_changes_no_bit(name, corner):
+    """The kernel computes a corner's impulse (``rarely``'s rare side) only in blocks where some lane
+    needs it. A block with one lane flying square at the wall (both ends land at once: contact 2)
+    among 31 ordinary lanes, and a block of ordinary lanes only, end bitwise as when every lane
+    computes both sides and selects."""
+    scene = scenes()[name]
+    ordinary = np.array(start_states(scene, 64, seed=13))
+    ordinary[5] = corner
+    states = jnp.asarray(ordinary)
+    results = [
+        jax.jit(
+            lambda s, by_block=by_block: _pallas.pallas_final(
+                scene, s, _lanes.fresh_carry(scene, s), 6, interpret=True, rare_by_block=by_block
+            )
+        )(states)
+        for by_block in (True, False)
+    ]
+    several = np.asarray(results[0].contact_counts)[:, _lanes.CONTACT_CODES.index(2)]
+    assert several[5] >= 1 and np.all(several[32:] == 0)  # the rare side ran in the first block only
+    for by_block, selected in zip(*results, strict=True):
+        np.testing.assert_array_equal(np.asarray(by_block), np.asarray(selected))
+
+
 @pytest.mark.parametrize("name", ["rotor 1.9", "walls 2D"])
 def test_pallas_through_run_pads_to_whole_blocks_on_one_device(name):
     """On one device (a single GPU) ``jb.run(driver="pallas")`` pads the batch to

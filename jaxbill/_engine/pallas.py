@@ -55,6 +55,8 @@ from jaxbill._engine.step import (
 # Orbits per kernel program (``lanes.PALLAS_BLOCK``, where a batch is padded to it).
 BLOCK = PALLAS_BLOCK
 NUM_WARPS = 1
+# ``rarely``'s rare side (a corner) computed only in blocks where some lane needs it.
+RARE_BY_BLOCK = True
 
 
 def _padded(size: int) -> int:
@@ -135,7 +137,17 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
         fli_out[...] = tangent[2]
 
 
-def _call(scene, states0, carry: Carry, steps, tangent, block: int, interpret: bool) -> Any:
+def _call(
+    scene,
+    states0,
+    carry: Carry,
+    steps,
+    tangent,
+    block: int,
+    interpret: bool,
+    num_warps: int | None = None,
+    rare_by_block: bool | None = None,
+) -> Any:
     """The kernel over the batch; ``tangent = (vectors (B, S), log_norm (B,), fli (B,))`` or ``None``."""
     from jax.experimental import pallas as pl
 
@@ -178,7 +190,7 @@ def _call(scene, states0, carry: Carry, steps, tangent, block: int, interpret: b
     if not interpret:
         from jax.experimental.pallas import triton as pl_triton
 
-        compiler_params = pl_triton.CompilerParams(num_warps=NUM_WARPS)
+        compiler_params = pl_triton.CompilerParams(num_warps=NUM_WARPS if num_warps is None else num_warps)
     kernel = pl.pallas_call(
         functools.partial(_kernel, treedef, len(leaves), size, block, dynamical),
         grid=(batch // block,),
@@ -188,7 +200,7 @@ def _call(scene, states0, carry: Carry, steps, tangent, block: int, interpret: b
         interpret=interpret,
         compiler_params=compiler_params,
     )
-    with without_conditionals():
+    with without_conditionals(rare_by_block=RARE_BY_BLOCK if rare_by_block is None else rare_by_block):
         out = kernel(*arguments)
     carry = Carry(out[0][:size].T, out[1], out[2], out[3][: len(CONTACT_CODES) + 1].T)
     if tangent is None:
@@ -196,7 +208,17 @@ def _call(scene, states0, carry: Carry, steps, tangent, block: int, interpret: b
     return carry, (out[4][:size].T, out[5], out[6])
 
 
-def pallas_final(scene, states0: jax.Array, carry: Carry, steps, *, block: int = BLOCK, interpret: bool = False):
+def pallas_final(
+    scene,
+    states0: jax.Array,
+    carry: Carry,
+    steps,
+    *,
+    block: int = BLOCK,
+    interpret: bool = False,
+    num_warps: int | None = None,
+    rare_by_block: bool | None = None,
+):
     """``steps`` more collisions of every orbit, final states and statistics only, in one Pallas kernel.
 
     Args:
@@ -207,12 +229,14 @@ def pallas_final(scene, states0: jax.Array, carry: Carry, steps, *, block: int =
         steps: collisions to add (may be traced).
         block: orbits per kernel program (a power of two).
         interpret: run the kernel in Pallas's interpreter (any backend, e.g. the CPU).
+        num_warps, rare_by_block: the kernel's tuning (default ``NUM_WARPS``,
+            ``RARE_BY_BLOCK``); results do not depend on them.
 
     Returns:
         The new ``Carry``. Equal, lane by lane, to ``jaxbill._engine.lanes.run_block``
         with ``record="final"``: the same collisions in the same root steps.
     """
-    return _call(scene, states0, carry, steps, None, block, interpret)
+    return _call(scene, states0, carry, steps, None, block, interpret, num_warps, rare_by_block)
 
 
 def pallas_fli(scene, states0: jax.Array, tangents0: jax.Array, n, *, block: int = BLOCK, interpret: bool = False):

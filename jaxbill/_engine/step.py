@@ -72,19 +72,27 @@ def stacked(parts: tuple) -> jax.Array:
 _CONDITIONALS = contextvars.ContextVar("jaxbill_conditionals", default=True)
 
 
+# Inside a Pallas kernel: ``rarely`` branches on whether any lane of the block needs its rare side.
+_RARE_BY_BLOCK = contextvars.ContextVar("jaxbill_rare_by_block", default=False)
+
+
 @contextlib.contextmanager
-def without_conditionals():
+def without_conditionals(rare_by_block: bool = False):
     """Trace scene code in which ``cos_sin`` and ``rarely`` add no ``lax.cond``: the lane drivers.
 
     A Pallas kernel is one fusion already, and Triton lowers no conditional over
     a block of lanes; the XLA lane state machine measured slower with them
     (``benchmarks/bench_drivers.py``: walls 0.5x), so only ``advance`` (single
-    orbits, lockstep batches, tangents) keeps them.
+    orbits, lockstep batches, tangents) keeps them. ``rare_by_block``: inside a
+    kernel, ``rarely`` computes its rare side only when some lane of the block
+    needs it (one branch on a scalar, which Triton lowers).
     """
     token = _CONDITIONALS.set(False)
+    block_token = _RARE_BY_BLOCK.set(rare_by_block)
     try:
         yield
     finally:
+        _RARE_BY_BLOCK.reset(block_token)
         _CONDITIONALS.reset(token)
 
 
@@ -177,6 +185,9 @@ def rarely(condition, if_true, if_false, *operands):
         return jax.tree.map(lambda a, b: jnp.where(condition, a, b), if_true(*ops), if_false(*ops))
 
     if not _conditionals():
+        if _RARE_BY_BLOCK.get():
+            some_lane = jnp.max(jnp.asarray(condition, jnp.int32)) > 0
+            return jax.lax.cond(some_lane, select_per_lane, if_false, *operands)
         return select_per_lane(*operands)
     axis = _LANE_AXIS.get()
     if axis is not None:
