@@ -170,6 +170,20 @@ def test_bad_state_in_a_batch_raises():
         jb.orbit(rotor(), states, N)
 
 
+def test_a_batch_error_names_its_first_offending_state():
+    """The message quotes the first offending row of a batch, not row 0 or a later offender
+    (the checks reduce on the device and bring back only its index)."""
+    first, later = _outside_state(), _outside_state() * np.array([1, 0.5, 1, 1, 1, 1])
+    states = np.stack([GOOD, GOOD, first, GOOD, later])
+    with pytest.raises(ValueError, match=r"end P1 outside the circle") as raised:
+        jb.run(rotor(), states, N, progress=False)
+    assert str(first.tolist()) in str(raised.value) and str(later.tolist()) not in str(raised.value)
+    slow = GOOD * np.array([1, 1, 1, 1e-170, 1e-170, 0])  # |v|^2 underflows: no flight time
+    with pytest.raises(ValueError, match=r"squares that float64 represents") as raised:
+        jb.run(rotor(), np.stack([GOOD, slow, GOOD]), N, progress=False)
+    assert str(slow.tolist()) in str(raised.value)
+
+
 def test_end_on_wall_moving_inwards_is_accepted():
     """The mirror case of 'on the wall moving outwards': the state just after a
     collision, which must be a valid start."""
