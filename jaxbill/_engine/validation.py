@@ -212,28 +212,35 @@ def on_wall_not_inwards(gaps, speeds):
     return jnp.any((jnp.asarray(gaps) <= 0.0) & (jnp.asarray(speeds) >= 0.0), axis=-1)
 
 
-@jax.jit
-def _first_invalid_rows(scene, states: jax.Array):
-    """The first offending row of ``states`` ``(B, S)`` under each check, ``-1`` where none offends:
-    ``(not finite, motion not representable, (G,) end outside the wall, (G,) end on the wall without
-    moving inwards)``, from the scene's own geometry (the same the collision map uses).
+def _offending(scene, states: jax.Array):
+    """Per row of ``states`` ``(B, S)``: ``(not finite (B,), motion not representable (B,), end outside
+    the wall (B, G), end on the wall without moving inwards (B, G))``, from the scene's own geometry
+    (the same the collision map uses)."""
+    gaps, speeds = scene.gaps(states), scene.approach_speeds(states)
+    return (
+        ~jnp.all(jnp.isfinite(states), axis=-1),
+        ~scene.motion_is_representable(states),
+        gaps < -WALL_TOLERANCE * scene.gap_scale,
+        (gaps <= 0.0) & (speeds >= 0.0),
+    )
 
-    Compiled, and reduced where the states are: a few indices come back to the
-    host, not every gap and speed of the batch.
-    """
+
+@jax.jit
+def _all_valid(scene, states: jax.Array) -> jax.Array:
+    """Whether no row of ``states`` offends: one flag comes back to the host, not every gap and speed
+    of the batch (on a GPU, copying those back cost more than checking them)."""
+    return ~jnp.any(jnp.stack([jnp.any(o) for o in _offending(scene, states)]))
+
+
+@jax.jit
+def _first_offending_rows(scene, states: jax.Array):
+    """``_offending``'s first offending row under each check (``-1``: none); ``(G,)`` for the gaps."""
 
     def first(offending):
         return jnp.where(jnp.any(offending), jnp.argmax(offending), -1)
 
-    gaps, speeds = scene.gaps(states), scene.approach_speeds(states)
-    outside = gaps < -WALL_TOLERANCE * scene.gap_scale
-    resting = (gaps <= 0.0) & (speeds >= 0.0)
-    return (
-        first(~jnp.all(jnp.isfinite(states), axis=-1)),
-        first(~scene.motion_is_representable(states)),
-        jax.vmap(first, in_axes=-1)(outside),
-        jax.vmap(first, in_axes=-1)(resting),
-    )
+    not_finite, unrepresentable, outside, resting = _offending(scene, states)
+    return first(not_finite), first(unrepresentable), jax.vmap(first, -1)(outside), jax.vmap(first, -1)(resting)
 
 
 def check_state(scene, state) -> None:
@@ -242,7 +249,10 @@ def check_state(scene, state) -> None:
     check_state_static(scene, s)
     s = s.astype(np.float64)
     states = np.atleast_2d(s)
-    not_finite, unrepresentable, outside, on_wall = jax.device_get(_first_invalid_rows(scene, states))
+    if bool(_all_valid(scene, states)):
+        scene.check_state_values(s)
+        return
+    not_finite, unrepresentable, outside, on_wall = jax.device_get(_first_offending_rows(scene, states))
     if not_finite >= 0:
         raise ValueError("state must be finite: it contains NaN or inf")
     scene.check_state_values(s)
