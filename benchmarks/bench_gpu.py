@@ -322,8 +322,9 @@ def run_breakdown(jb, baseline, orbits, n, rounds):
                 jb.run(scene, states, n, driver="pallas", progress=False)
                 totals.append(time.perf_counter() - started)
             for part, times in spent.items():
-                per_run = [sum(times[i::rounds]) for i in range(rounds)] if len(times) > rounds else times
-                print(f"| {label} | {part} ({len(times) // rounds} calls) | {1e3 * statistics.median(per_run):.1f} |")
+                calls = len(times) // rounds  # each run's calls, one run after another
+                per_run = [sum(times[i * calls : (i + 1) * calls]) for i in range(rounds)]
+                print(f"| {label} | {part} ({calls} calls) | {1e3 * statistics.median(per_run):.1f} |")
             print(f"| {label} | jb.run in all | {1e3 * statistics.median(totals):.1f} |", flush=True)
     finally:
         for (owner, name), function in originals.items():
