@@ -177,8 +177,10 @@ def rarely(condition, if_true, if_false, *operands):
     a branch becomes a select and both sides are computed; inside
     ``vmapped_over_lanes`` the lanes first ask whether any of them needs the
     rare side, and compute it only then (a lockstep batch of lenses: 1.75x).
-    The lane drivers (``without_conditionals``) select. The values are the
-    same every way.
+    The XLA lane driver (``without_conditionals``) selects; the Pallas kernel
+    (``rare_by_block``) computes the rare side only in blocks of lanes where
+    some lane needs it (the spinning stick's kernel 1.18x faster, the lens's
+    1.8x, on an H100). The values are the same every way.
     """
 
     def select_per_lane(*ops):
