@@ -176,12 +176,8 @@ def main():
                     )
             if hasattr(scene, "dynamical_indices") and not args.final_only:  # tangent in state coordinates
                 from jaxbill._engine import pallas as _pallas
-                from jaxbill._engine.lanes import PALLAS_BLOCK
-                from jaxbill._engine.sharding import pad_batch
 
-                # The bare kernel takes whole blocks only: the batch padded with copies of its
-                # first orbit, as jb.run pads it (the rate counts the real orbits alone).
-                padded = pad_batch(states, -(-orbits // PALLAS_BLOCK) * PALLAS_BLOCK)
+                padded = whole_blocks(states)
                 tangents = np.zeros_like(padded)
                 dynamical = list(scene.dynamical_indices)
                 tangents[:, dynamical] = 1.0 / np.sqrt(len(dynamical))
@@ -212,15 +208,23 @@ def main():
     return 0
 
 
+def whole_blocks(states, block=None):
+    """``states`` padded to whole kernel blocks (the bare kernel takes no other batch) with copies of
+    the first orbit, as ``jb.run`` pads it; rates count the real orbits alone."""
+    from jaxbill._engine.lanes import PALLAS_BLOCK
+    from jaxbill._engine.sharding import pad_batch
+
+    block = block or PALLAS_BLOCK
+    return pad_batch(states, -(-len(states) // block) * block)
+
+
 def bare_kernel(scene, states, n, **tuning):
     """A function of no argument: ``pallas_final`` over ``states`` (padded to whole blocks, on the
     device already), ``n`` collisions in one call, waited for."""
     from jaxbill._engine import lanes
     from jaxbill._engine.pallas import pallas_final
-    from jaxbill._engine.sharding import pad_batch
 
-    block = tuning.get("block", lanes.PALLAS_BLOCK)
-    padded = jax.numpy.asarray(pad_batch(states, -(-len(states) // block) * block))
+    padded = jax.numpy.asarray(whole_blocks(states, tuning.get("block")))
     carry = lanes.fresh_carry(scene, padded)
     kernel = jax.jit(lambda s, c: pallas_final(scene, s, c, n, **tuning).state)
     return lambda: jax.block_until_ready(kernel(padded, carry))

@@ -145,8 +145,8 @@ def _call(
     tangent,
     block: int,
     interpret: bool,
-    num_warps: int | None = None,
-    rare_by_block: bool | None = None,
+    num_warps: int = NUM_WARPS,
+    rare_by_block: bool = RARE_BY_BLOCK,
 ) -> Any:
     """The kernel over the batch; ``tangent = (vectors (B, S), log_norm (B,), fli (B,))`` or ``None``."""
     from jax.experimental import pallas as pl
@@ -190,7 +190,7 @@ def _call(
     if not interpret:
         from jax.experimental.pallas import triton as pl_triton
 
-        compiler_params = pl_triton.CompilerParams(num_warps=NUM_WARPS if num_warps is None else num_warps)
+        compiler_params = pl_triton.CompilerParams(num_warps=num_warps)
     kernel = pl.pallas_call(
         functools.partial(_kernel, treedef, len(leaves), size, block, dynamical),
         grid=(batch // block,),
@@ -200,7 +200,7 @@ def _call(
         interpret=interpret,
         compiler_params=compiler_params,
     )
-    with without_conditionals(rare_by_block=RARE_BY_BLOCK if rare_by_block is None else rare_by_block):
+    with without_conditionals(rare_by_block=rare_by_block):
         out = kernel(*arguments)
     carry = Carry(out[0][:size].T, out[1], out[2], out[3][: len(CONTACT_CODES) + 1].T)
     if tangent is None:
@@ -216,8 +216,8 @@ def pallas_final(
     *,
     block: int = BLOCK,
     interpret: bool = False,
-    num_warps: int | None = None,
-    rare_by_block: bool | None = None,
+    num_warps: int = NUM_WARPS,
+    rare_by_block: bool = RARE_BY_BLOCK,
 ):
     """``steps`` more collisions of every orbit, final states and statistics only, in one Pallas kernel.
 
@@ -229,8 +229,8 @@ def pallas_final(
         steps: collisions to add (may be traced).
         block: orbits per kernel program (a power of two).
         interpret: run the kernel in Pallas's interpreter (any backend, e.g. the CPU).
-        num_warps, rare_by_block: the kernel's tuning (default ``NUM_WARPS``,
-            ``RARE_BY_BLOCK``); results do not depend on them.
+        num_warps, rare_by_block: the kernel's tuning (Triton warps per program;
+            the rare side of ``rarely`` by block); results do not depend on them.
 
     Returns:
         The new ``Carry``. Equal, lane by lane, to ``jaxbill._engine.lanes.run_block``

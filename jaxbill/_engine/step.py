@@ -188,6 +188,7 @@ def rarely(condition, if_true, if_false, *operands):
 
     if not _conditionals():
         if _RARE_BY_BLOCK.get():
+            # A max over int32: Triton lowers no reduction of booleans (jnp.any).
             some_lane = jnp.max(jnp.asarray(condition, jnp.int32)) > 0
             return jax.lax.cond(some_lane, select_per_lane, if_false, *operands)
         return select_per_lane(*operands)
