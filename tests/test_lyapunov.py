@@ -83,6 +83,38 @@ def test_per_time_and_per_collision_agree_through_mean_collision_rate(spectra, n
     assert np.max(np.abs(lam_coll + lam_coll[::-1])) <= 2 * np.log(N) / N
 
 
+@pytest.mark.parametrize("name,params_and_start", [("rotor", ROTOR), ("lens", LENS)])
+def test_paired_spectrum_agrees_with_the_full_run_as_far_as_the_run_has_converged(spectra, name, params_and_start):
+    """``paired=True`` assumes the pairing the full run measures: at every checkpoint the two
+    spectra agree within tol(n), the size of a finite-time estimate of a zero exponent (a wrong
+    mirror would miss by about 2 lambda); the orbit is the same to the bit (the vectors never
+    touch it)."""
+    scene, full, _ = spectra[name]
+    paired = lyapunov_spectrum(scene, jnp.asarray(params_and_start[1]), N, n_history=10, paired=True)
+    assert paired.exponents.shape == full.exponents.shape and paired.history.shape == full.history.shape
+    np.testing.assert_array_equal(np.asarray(paired.times), np.asarray(full.times))
+    for n, t, a, b in zip(
+        np.asarray(full.collisions), np.asarray(full.times), np.asarray(paired.history), np.asarray(full.history)
+    ):
+        assert np.max(np.abs(a - b)) <= _tol(n, t), (n, a, b)
+    assert np.all(np.diff(np.asarray(paired.exponents)) <= 0)
+
+
+def test_paired_spectrum_refuses_what_does_not_pair():
+    from typing import ClassVar
+
+    class WithLosses(jb.StickInCircle):
+        symplectic_flow: ClassVar[bool] = False
+
+    s = jnp.asarray(ROTOR[1])
+    with pytest.raises(ValueError, match="paired=True needs per='time'"):
+        lyapunov_spectrum(jb.StickInCircle(R=2.0, ell=1.0), s, 10, per="collision", paired=True)
+    with pytest.raises(ValueError, match="symplectic"):
+        lyapunov_spectrum(WithLosses(R=2.0, ell=1.0), s, 10, paired=True)
+    with pytest.raises(ValueError, match="paired must be True or False"):
+        lyapunov_spectrum(jb.StickInCircle(R=2.0, ell=1.0), s, 10, paired="yes")
+
+
 def test_batch_and_vmap_agree_with_single_runs():
     """Short runs: batched and scalar programs may differ by an ulp (FMA
     contraction on CPU), which chaos amplifies by about exp(0.75 per collision)."""
@@ -149,8 +181,9 @@ def test_the_frame_is_orthonormalised_as_lapack_does():
         np.testing.assert_allclose(q.T @ q, np.eye(frame.shape[1]), atol=1e-15)
 
 
+@pytest.mark.parametrize("paired", [False, True])
 @pytest.mark.parametrize("name", ["rotor", "lens", "walls"])
-def test_a_batch_gives_each_orbit_its_spectrum_alone(name):
+def test_a_batch_gives_each_orbit_its_spectrum_alone(name, paired):
     """Orbit by orbit, a batch's spectrum is the orbit's alone: bitwise where the scene's orbits run one
     after another (``batch_chunk == 1``: the walls), to rounding where they run vectorised."""
     if name == "walls":
@@ -160,8 +193,8 @@ def test_a_batch_gives_each_orbit_its_spectrum_alone(name):
         params, s0 = {"rotor": ROTOR, "lens": LENS}[name]
         scene, start = jb.StickInCircle(**params), jnp.asarray(s0)
     states = jnp.concatenate([start[None], jnp.asarray(jb.orbit(scene, start, 3).state)])
-    batch = np.asarray(lyapunov_spectrum(scene, states, 300).exponents)
-    alone = np.stack([np.asarray(lyapunov_spectrum(scene, s, 300).exponents) for s in states])
+    batch = np.asarray(lyapunov_spectrum(scene, states, 300, paired=paired).exponents)
+    alone = np.stack([np.asarray(lyapunov_spectrum(scene, s, 300, paired=paired).exponents) for s in states])
     if scene.batch_chunk == 1:
         np.testing.assert_array_equal(batch, alone)
     else:

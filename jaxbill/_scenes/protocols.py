@@ -280,6 +280,20 @@ class HasPeriodicSymmetry(Protocol):
     periodic_symmetry: ClassVar[str]
 
 
+class HasSymplecticFlow(Protocol):
+    """A scene whose flow in its dynamical coordinates is symplectic (a Hamiltonian flight, elastic collisions).
+
+    Its Lyapunov exponents then come in pairs ``lambda, -lambda`` (the pairing
+    rule of a symplectic tangent map), so ``lyapunov_spectrum(..., paired=True)``
+    can carry half the tangent vectors and give the lower half of the spectrum
+    as the negatives of the upper. Every scene jaxbill ships sets
+    ``symplectic_flow = True``; a scene with losses (a coefficient of
+    restitution below one) must not.
+    """
+
+    symplectic_flow: ClassVar[bool]
+
+
 @runtime_checkable
 class HasAngularMomentum(Protocol):
     """A scene with a conserved angular momentum (``StickInCircle`` about the origin, ``StickBetweenWalls3D``

@@ -406,6 +406,7 @@ class StickInCircle(eqx.Module):
     sections: ClassVar[tuple[str, ...]] = ("reduced", "paper", "birkhoff")
     area_preserving_section: ClassVar[str] = "reduced"
     periodic_symmetry: ClassVar[str] = "rotation"  # turning the whole picture about the centre
+    symplectic_flow: ClassVar[bool] = True  # HasSymplecticFlow: elastic and Hamiltonian
 
     def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
         """Section points ``(..., 2)`` (``HasSection``): ``"reduced"`` (default, area-preserving at fixed

@@ -494,6 +494,7 @@ class StickInEllipse(eqx.Module):
     area_preserving_section: ClassVar[str] = "birkhoff"
     # No continuous symmetry: a periodic orbit closes in every coordinate.
     periodic_symmetry: ClassVar[str] = "none"
+    symplectic_flow: ClassVar[bool] = True  # HasSymplecticFlow: elastic and Hamiltonian
     # The state's angles, compared modulo 2 pi when an orbit closes.
     periodic_angles: ClassVar[tuple[int, ...]] = (2,)
 

@@ -211,6 +211,7 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
     area_preserving_section: ClassVar[str] = "floor"
     # The horizontal drift divides out.
     periodic_symmetry: ClassVar[str] = "translation"
+    symplectic_flow: ClassVar[bool] = True  # HasSymplecticFlow: elastic and Hamiltonian
 
     def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
         """Section points ``(..., 2)`` at floor collisions, NaN elsewhere (``HasSection``; ``jb.floor_section``).

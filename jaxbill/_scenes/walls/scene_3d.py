@@ -290,6 +290,7 @@ class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
     area_preserving_section: ClassVar[str] = "reduced floor"
     # The horizontal drift divides out (and, for a turning stick, the turn about the vertical).
     periodic_symmetry: ClassVar[str] = "translation"
+    symplectic_flow: ClassVar[bool] = True  # HasSymplecticFlow: elastic and Hamiltonian
 
     def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
         """Section points ``(..., 2)`` at floor collisions, NaN elsewhere (``HasSection``; ``jb.reduced_wall_section``).
