@@ -14,10 +14,12 @@ batch) for
 * ``spectrum (k vectors + QR)``: the full Benettin step, k tangent vectors
   (6 for the spinning stick, 4 for the lens) and a QR factorisation at every
   collision, ``lyapunov_spectrum`` on the batch,
+* ``spectrum, paired``: the same spectrum from k / 2 vectors and their
+  pairing partners, ``lyapunov_spectrum(..., paired=True)``,
 
 with the compile time (first call minus a steady run) apart ("cached" when a
 scene of the same kind compiled it already) and the steady rate the median of
-several runs. Nothing asserts on timings.
+several rounds that alternate the four runs. Nothing asserts on timings.
 """
 
 from __future__ import annotations
@@ -37,24 +39,29 @@ SCENES = [
 ]
 
 
-def timed(jax, fn, repeats):
-    start = time.perf_counter()
-    jax.block_until_ready(fn())
-    first = time.perf_counter() - start
-    runs = []
-    for _ in range(repeats):
+def timed(jax, contenders, repeats):
+    """``{name: (compile s, steady s)}``: each callable's first call, then ``repeats`` rounds of
+    all of them in alternation (this machine is shared: interleaving spreads its noise evenly);
+    steady = the median of the rounds, compile = first call minus steady."""
+    firsts, runs = {}, {name: [] for name in contenders}
+    for name, fn in contenders.items():
         start = time.perf_counter()
         jax.block_until_ready(fn())
-        runs.append(time.perf_counter() - start)
-    steady = statistics.median(runs)
-    return first - steady, steady
+        firsts[name] = time.perf_counter() - start
+    for _ in range(repeats):
+        for name, fn in contenders.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn())
+            runs[name].append(time.perf_counter() - start)
+    steady = {name: statistics.median(times) for name, times in runs.items()}
+    return {name: (firsts[name] - steady[name], steady[name]) for name in contenders}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short runs (smoke test, < 1 min)")
     parser.add_argument("--batch", type=int, default=1024)
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=5, help="interleaved rounds")
     args = parser.parse_args()
 
     import jax
@@ -71,26 +78,31 @@ def main() -> None:
     )
     print(
         f"batch B = {args.batch}; n = {n_plain} collisions per orbit for `orbit`, {n_tangent} for the tangent "
-        f"runs; steady rate = median of {args.repeats} runs\n"
+        f"runs; steady rate = median of {args.repeats} interleaved rounds\n"
     )
     print(
         "| scene | orbit (coll/s) | FTLE, 1 vector (steps/s) | spectrum, k vectors + QR (steps/s) "
-        "| cost vs orbit (1 vector / spectrum) | compile s (orbit / FTLE / spectrum) |"
+        "| spectrum, paired (steps/s) | rate vs orbit (1 vector / spectrum / paired) "
+        "| compile s (orbit / FTLE / spectrum / paired) |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for label, R, ell, inertia in SCENES:
         scene = jb.StickInCircle(R=R, ell=ell, inertia=inertia)
         states, _ = sample_energy_shell(scene, args.batch, energy=0.5, seed=0)
         states = jnp.asarray(states)
-        c_orbit, t_orbit = timed(jax, lambda: jb.orbit(scene, states, n_plain).state, args.repeats)
-        c_ftle, t_ftle = timed(jax, lambda: finite_time_lyapunov(scene, states, n_tangent).per_time, args.repeats)
-        c_spec, t_spec = timed(jax, lambda: lyapunov_spectrum(scene, states, n_tangent).exponents, args.repeats)
+        contenders = {
+            "orbit": lambda: jb.orbit(scene, states, n_plain).state,
+            "ftle": lambda: finite_time_lyapunov(scene, states, n_tangent).per_time,
+            "spectrum": lambda: lyapunov_spectrum(scene, states, n_tangent).exponents,
+            "paired": lambda: lyapunov_spectrum(scene, states, n_tangent, paired=True).exponents,
+        }
+        times = timed(jax, contenders, args.repeats)
+        (c_orbit, t_orbit), (c_ftle, t_ftle), (c_spec, t_spec), (c_pair, t_pair) = times.values()
         r_orbit = args.batch * n_plain / t_orbit
-        r_ftle = args.batch * n_tangent / t_ftle
-        r_spec = args.batch * n_tangent / t_spec
-        compile_s = " / ".join(f"{c:.1f}" if c > 0.05 else "cached" for c in (c_orbit, c_ftle, c_spec))
-        cost = f"{r_orbit / r_ftle:.1f}x / {r_orbit / r_spec:.1f}x"
-        print(f"| {label} | {r_orbit:.3g} | {r_ftle:.3g} | {r_spec:.3g} | {cost} | {compile_s} |")
+        r_ftle, r_spec, r_pair = (args.batch * n_tangent / t for t in (t_ftle, t_spec, t_pair))
+        compile_s = " / ".join(f"{c:.1f}" if c > 0.05 else "cached" for c in (c_orbit, c_ftle, c_spec, c_pair))
+        ratios = " / ".join(f"{r / r_orbit:.2f}" for r in (r_ftle, r_spec, r_pair))
+        print(f"| {label} | {r_orbit:.3g} | {r_ftle:.3g} | {r_spec:.3g} | {r_pair:.3g} | {ratios} | {compile_s} |")
 
 
 if __name__ == "__main__":
