@@ -281,10 +281,11 @@ class HasPeriodicSymmetry(Protocol):
 
 
 class HasSymplecticFlow(Protocol):
-    """A scene whose flow in its dynamical coordinates is symplectic (a Hamiltonian flight, elastic collisions).
+    """A scene whose flow is symplectic: a Hamiltonian flight and elastic collisions.
 
     Its Lyapunov exponents then come in pairs ``lambda, -lambda`` (the pairing
-    rule of a symplectic tangent map), so ``lyapunov_spectrum(..., paired=True)``
+    rule; exponents do not depend on the coordinates, so it holds in the
+    dynamical frame the analyses use), so ``lyapunov_spectrum(..., paired=True)``
     can carry half the tangent vectors and give the lower half of the spectrum
     as the negatives of the upper. Every scene jaxbill ships sets
     ``symplectic_flow = True``; a scene with losses (a coefficient of
