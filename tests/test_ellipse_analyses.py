@@ -196,3 +196,22 @@ def test_every_scene_answers_the_capability_protocols(scene):
 
 def test_symmetries_are_the_scenes_own():
     assert [s.periodic_symmetry for s in SCENES] == ["rotation", "none", "translation", "translation"]
+
+
+def test_a_spinning_sticks_spectrum_pairs_with_two_positive_exponents():
+    """The stick in an ellipse has three degrees of freedom and, off the circle, no invariant but the
+    energy: its flow's spectrum is ``{l1, l2, 0, 0, -l2, -l1}`` with ``l2 > 0`` (only the time shift
+    and the energy give zeros). Every checkpoint pairs within ``2 log(n) / T``, the size of a
+    finite-time estimate of a zero exponent: the flow is symplectic, as its ``symplectic_flow`` says,
+    and ``paired=True`` (three vectors and their partners) agrees with the six-vector run as closely."""
+    scene = jb.StickInEllipse(a=2.2, b=1.8, ell=0.9)
+    start = jnp.array([0.2, -0.3, 0.4, 0.8, 0.5, 1.3])
+    n = 4000
+    full = jb.lyapunov_spectrum(scene, start, n, n_history=5)
+    paired = jb.lyapunov_spectrum(scene, start, n, n_history=5, paired=True)
+    tolerance = 2 * np.log(np.asarray(full.collisions)) / np.asarray(full.times)
+    history = np.asarray(full.history)
+    assert np.all(np.max(np.abs(history + history[:, ::-1]), axis=1) <= tolerance)
+    assert np.all(np.max(np.abs(history[:, 2:4]), axis=1) <= tolerance)
+    assert history[-1, 1] > 0.1 and history[-1, 1] > 10 * tolerance[-1]
+    assert np.all(np.max(np.abs(np.asarray(paired.history) - history), axis=1) <= tolerance)
