@@ -120,12 +120,13 @@ def _descending(values: jax.Array) -> jax.Array:
     return jnp.stack(rows, axis=-1)
 
 
-def _with_partners(values: jax.Array) -> jax.Array:
-    """``values`` ``(..., j)`` and their pairing partners ``-values``, ``(..., 2j)`` (``_descending`` orders them)."""
-    return jnp.concatenate([values, -values], axis=-1)
+def _with_partners(values: jax.Array, count: int) -> jax.Array:
+    """``values`` ``(..., j)`` and the pairing partners ``-values`` of the first ``count``, ``(..., j + count)``
+    (``_descending`` orders them)."""
+    return jnp.concatenate([values, -values[..., :count]], axis=-1)
 
 
-def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, paired=False):
+def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
     flow = per == "time"
     constants = orbit_constants(scene, state0)
 
@@ -171,8 +172,8 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, paired=False):
     else:
         history = logs_hist / counts[:, None]
         exponents = logs / n
-    if paired:
-        history, exponents = _with_partners(history), _with_partners(exponents)
+    if partners:
+        history, exponents = _with_partners(history, partners), _with_partners(exponents, partners)
     history = _descending(history)
     exponents = _descending(exponents)
     # Later states come from the map itself; only the start needs checking.
@@ -181,11 +182,11 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, paired=False):
 
 
 @eqx.filter_jit
-def _spectrum_jit(scene, state0, n, per, qr_every, n_history, frame0, paired):
+def _spectrum_jit(scene, state0, n, per, qr_every, n_history, frame0, partners):
     if state0.ndim == 1:
-        return _spectrum(scene, state0, n, per, qr_every, n_history, frame0, paired)
+        return _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners)
     return map_over_orbits(scene, _spectrum, (None, 0, None, None, None, None, None, None))(
-        scene, state0, n, per, qr_every, n_history, frame0, paired
+        scene, state0, n, per, qr_every, n_history, frame0, partners
     )
 
 
@@ -229,18 +230,18 @@ def lyapunov_spectrum(
             safe; larger values are faster but overflow or lose the small
             exponents if the frame grows by more than ~1e150 between QRs.
         n_history: number of checkpoints kept in ``history`` (static).
-        paired: ``False`` (default): all ``k`` tangent vectors are carried,
-            and the spectrum's pairing (below) checks the run. ``True``:
-            only the first ``k / 2`` are carried, and the lower half of the
-            spectrum is the upper half's negatives, by the pairing rule of a
-            symplectic flow (``HasSymplecticFlow``; every shipped scene):
-            the same upper half as the full run's leading vectors, 1.4-1.9x
-            faster (a batch's steps at 0.5-0.8x the rate of plain
-            collisions, the full run's at 0.34-0.45x; ``docs/performance.md``).
-            Needs ``per="time"`` (the section map keeps the energy's zero
-            unpaired). The pairing is then assumed, no longer measured: run
-            ``paired=False`` once to see how far a run of this length has
-            converged.
+        paired: ``False`` (default): all tangent vectors are carried, and
+            the spectrum's pairing (below) checks the run. ``True``: only the
+            first half are carried (``k / 2`` per time; ``k / 2`` rounded up
+            per collision, whose middle exponent is the energy's zero), and
+            the lower half of the spectrum is the upper half's negatives, by
+            the pairing rule of a symplectic flow (``HasSymplecticFlow``;
+            every shipped scene): the same upper half as the full run's
+            leading vectors, 1.4-1.9x faster (a batch's steps per time at
+            0.5-0.8x the rate of plain collisions, the full run's at
+            0.34-0.45x; ``docs/performance.md``). The pairing is then
+            assumed, no longer measured: run ``paired=False`` once to see
+            how far a run of this length has converged.
 
     Returns:
         ``LyapunovSpectrum`` (with a leading batch axis for a batch of states):
@@ -270,22 +271,23 @@ def lyapunov_spectrum(
     if not isinstance(paired, bool | np.bool_):
         raise ValueError(f"paired must be True or False; got {paired!r}")
     paired = bool(paired)
+    partners = 0
     if paired:
-        _check_pairing(scene, per, k)
-        frame0 = frame0[:, : k // 2]
-    return _spectrum_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, per, qr_every, n_history, frame0, paired)
+        _check_pairing(scene, n_dim)
+        partners = k // 2
+        frame0 = frame0[:, : k - partners]
+    return _spectrum_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, per, qr_every, n_history, frame0, partners)
 
 
-def _check_pairing(scene: Scene, per: str, k: int) -> None:
-    """Raise unless the ``k`` exponents of ``scene`` per ``per`` come in pairs ``lambda, -lambda``."""
-    if per != "time":
-        raise ValueError(
-            f"paired=True needs per='time'; got per={per!r}: the section map's spectrum has an unpaired zero (energy)"
-        )
+def _check_pairing(scene: Scene, n_dim: int) -> None:
+    """Raise unless the exponents of ``scene``'s flow (``n_dim`` of them) come in pairs ``lambda, -lambda``."""
     if getattr(scene, "symplectic_flow", False) is not True:
         raise ValueError(
             f"paired=True needs a scene whose flow is symplectic (symplectic_flow = True, the HasSymplecticFlow "
             f"protocol of jaxbill._scenes.protocols); {type(scene).__name__} does not say so"
         )
-    if k % 2:
-        raise ValueError(f"paired=True needs an even number of dynamical directions; {type(scene).__name__} has {k}")
+    if n_dim % 2:
+        raise ValueError(
+            f"paired=True needs an even number of dynamical directions (a symplectic flow has one); "
+            f"{type(scene).__name__} has {n_dim}"
+        )
