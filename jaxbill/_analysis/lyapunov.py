@@ -270,7 +270,6 @@ def lyapunov_spectrum(
     frame0 = _initial_vectors(n_dim, k)
     if not isinstance(paired, bool | np.bool_):
         raise ValueError(f"paired must be True or False; got {paired!r}")
-    paired = bool(paired)
     partners = 0
     if paired:
         _check_pairing(scene, n_dim)
