@@ -28,8 +28,8 @@ import argparse
 import math
 import os
 import platform
-import statistics
-import time
+
+from interleaved import interleaved  # this script's folder, on sys.path when run
 
 SCENES = [
     ("R=2 ell=1.9 I=M ell^2", 2.0, 1.9, None),
@@ -37,24 +37,6 @@ SCENES = [
     ("R=2 ell=1.9 I=inf", 2.0, 1.9, math.inf),
     ("R=2 ell=1.0 I=inf", 2.0, 1.0, math.inf),
 ]
-
-
-def timed(jax, contenders, repeats):
-    """``{name: (compile s, steady s)}``: each callable's first call, then ``repeats`` rounds of
-    all of them in alternation (this machine is shared: interleaving spreads its noise evenly);
-    steady = the median of the rounds, compile = first call minus steady."""
-    firsts, runs = {}, {name: [] for name in contenders}
-    for name, fn in contenders.items():
-        start = time.perf_counter()
-        jax.block_until_ready(fn())
-        firsts[name] = time.perf_counter() - start
-    for _ in range(repeats):
-        for name, fn in contenders.items():
-            start = time.perf_counter()
-            jax.block_until_ready(fn())
-            runs[name].append(time.perf_counter() - start)
-    steady = {name: statistics.median(times) for name, times in runs.items()}
-    return {name: (firsts[name] - steady[name], steady[name]) for name in contenders}
 
 
 def main() -> None:
@@ -90,14 +72,19 @@ def main() -> None:
         scene = jb.StickInCircle(R=R, ell=ell, inertia=inertia)
         states, _ = sample_energy_shell(scene, args.batch, energy=0.5, seed=0)
         states = jnp.asarray(states)
-        contenders = {
+        runs = {
             "orbit": lambda: jb.orbit(scene, states, n_plain).state,
             "ftle": lambda: finite_time_lyapunov(scene, states, n_tangent).per_time,
             "spectrum": lambda: lyapunov_spectrum(scene, states, n_tangent).exponents,
             "paired": lambda: lyapunov_spectrum(scene, states, n_tangent, paired=True).exponents,
         }
-        times = timed(jax, contenders, args.repeats)
-        (c_orbit, t_orbit), (c_ftle, t_ftle), (c_spec, t_spec), (c_pair, t_pair) = times.values()
+        timings = interleaved(
+            {name: lambda run=run: jax.block_until_ready(run()) for name, run in runs.items()}, args.repeats
+        )
+        # compile = first call minus a steady one
+        (c_orbit, t_orbit), (c_ftle, t_ftle), (c_spec, t_spec), (c_pair, t_pair) = (
+            (t.first - t.median, t.median) for t in timings.values()
+        )
         r_orbit = args.batch * n_plain / t_orbit
         r_ftle, r_spec, r_pair = (args.batch * n_tangent / t for t in (t_ftle, t_spec, t_pair))
         compile_s = " / ".join(f"{c:.1f}" if c > 0.05 else "cached" for c in (c_orbit, c_ftle, c_spec, c_pair))

@@ -40,7 +40,6 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import statistics
 import sys
 import time
 
@@ -91,6 +90,7 @@ import jaxbill as jb  # noqa: E402
 
 sys.path.insert(0, HERE)
 import numba_baseline as baseline  # noqa: E402
+from interleaved import interleaved  # noqa: E402
 
 # label -> params (numba_baseline layout); the orbit table runs all, the batch tables BATCH_SCENES.
 SCENES = {
@@ -101,30 +101,6 @@ SCENES = {
     "walls h=3 ell=1": baseline.walls_params(3.0, 1.0),
 }
 QUICK_BATCH_SCENES = ("rotor ell=1.9", "lens ell=1.5")
-
-
-def timed(function):
-    """``(wall seconds, CPU seconds of this process)`` of one call."""
-    wall, cpu = time.perf_counter(), time.process_time()
-    function()
-    return time.perf_counter() - wall, time.process_time() - cpu
-
-
-def compare(contenders, rounds):
-    """Warm each callable up once, then time them in alternation for ``rounds`` rounds.
-
-    Returns ``{name: (median wall seconds, CPU seconds / wall seconds)}``.
-    """
-    for function in contenders.values():
-        function()
-    walls = {name: [] for name in contenders}
-    cpus = {name: [] for name in contenders}
-    for _ in range(rounds):
-        for name, function in contenders.items():
-            wall, cpu = timed(function)
-            walls[name].append(wall)
-            cpus[name].append(cpu)
-    return {name: (statistics.median(walls[name]), sum(cpus[name]) / sum(walls[name])) for name in contenders}
 
 
 def load_average():
@@ -159,8 +135,8 @@ def single_orbits(args):
         def run_numba():
             steps.append(baseline.orbit(params, state0, n)[3])
 
-        times = compare({"jaxbill": run_jaxbill, "numba": run_numba}, args.rounds)
-        (t_jb, c_jb), (t_nb, c_nb) = times["jaxbill"], times["numba"]
+        times = interleaved({"jaxbill": run_jaxbill, "numba": run_numba}, args.rounds)
+        (t_jb, c_jb), (t_nb, c_nb) = ((times[name].median, times[name].cores) for name in ("jaxbill", "numba"))
         print(
             f"| {label} | {t_jb:.3f} | {t_nb:.3f} | {t_jb / t_nb:.2f} | {rate(n, t_jb)} | {rate(n, t_nb)} "
             f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1]):.2f} |"
@@ -204,7 +180,7 @@ def batches(args, scenes):
         if two:
             contenders["run2"] = lambda: jb.run(scene, states0, n, devices=devices[:2], progress=False)
             contenders["numba2"] = lambda: baseline.run_batch_parallel(params, states0, n, threads=2)
-        times = compare(contenders, args.rounds)
+        times = {name: (t.median, t.cores) for name, t in interleaved(contenders, args.rounds).items()}
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
         def cell(name):

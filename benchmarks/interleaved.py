@@ -1,0 +1,42 @@
+"""Contenders timed in alternation in one process, the way every table here is measured.
+
+This machine is shared and noisy: timing one contender's runs and then the
+next's lets a busy minute fall on one column. Rounds that call each contender
+in turn spread the noise over all of them alike; the median of the rounds is
+the figure quoted.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Timing:
+    first: float  # seconds of the first call (compilation included)
+    median: float  # median wall seconds over the rounds
+    cores: float  # this process's CPU seconds over wall seconds in the rounds
+
+
+def interleaved(contenders: dict[str, Callable[[], object]], rounds: int) -> dict[str, Timing]:
+    """Call each contender once, then ``rounds`` times in alternation; each call must wait for its work."""
+    first = {}
+    for name, function in contenders.items():
+        started = time.perf_counter()
+        function()
+        first[name] = time.perf_counter() - started
+    walls: dict[str, list[float]] = {name: [] for name in contenders}
+    cpus: dict[str, list[float]] = {name: [] for name in contenders}
+    for _ in range(rounds):
+        for name, function in contenders.items():
+            wall, cpu = time.perf_counter(), time.process_time()
+            function()
+            walls[name].append(time.perf_counter() - wall)
+            cpus[name].append(time.process_time() - cpu)
+    return {
+        name: Timing(first[name], statistics.median(walls[name]), sum(cpus[name]) / sum(walls[name]))
+        for name in contenders
+    }
