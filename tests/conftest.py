@@ -10,6 +10,11 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # Workers share one GPU where there is one: each takes memory as it needs it,
+    # where JAX's default takes three quarters of it for the first process.
+    os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
 import jaxbill
 import shape_checks
 
@@ -18,6 +23,17 @@ UNRESOLVED_ANNOTATIONS = shape_checks.install(jaxbill)
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
+
+# Test files that take minutes in all, longest first (about 7 and 6 minutes of a
+# worker's time on 2 cores). The workers take whole files in collection order
+# (``--dist loadfile --no-loadscope-reorder``), so these start first: one left for
+# the end would keep one worker busy while the others idle.
+LONGEST_FIRST = ("test_drivers.py", "test_notebooks.py")
+
+
+def pytest_collection_modifyitems(items):
+    rank = {name: position for position, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 @pytest.fixture(autouse=True, scope="module")
