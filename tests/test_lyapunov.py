@@ -30,13 +30,14 @@ def _tol(n, t):
 
 @pytest.fixture(scope="module")
 def spectra():
+    """Every vector carried (``paired=False``): the pairing and the zeros are measured."""
     out = {}
     for name, (params, s0) in {"rotor": ROTOR, "lens": LENS, "circle": CIRCLE}.items():
         scene = jb.StickInCircle(**params)
         out[name] = (
             scene,
-            lyapunov_spectrum(scene, jnp.asarray(s0), N, n_history=10),
-            lyapunov_spectrum(scene, jnp.asarray(s0), N, per="collision", n_history=10),
+            lyapunov_spectrum(scene, jnp.asarray(s0), N, n_history=10, paired=False),
+            lyapunov_spectrum(scene, jnp.asarray(s0), N, per="collision", n_history=10, paired=False),
         )
     return out
 
@@ -111,8 +112,31 @@ def test_paired_spectrum_refuses_what_does_not_pair():
     s = jnp.asarray(ROTOR[1])
     with pytest.raises(ValueError, match="symplectic"):
         lyapunov_spectrum(WithLosses(R=2.0, ell=1.0), s, 10, paired=True)
-    with pytest.raises(ValueError, match="paired must be True or False"):
+    with pytest.raises(ValueError, match="paired must be True, False or None"):
         lyapunov_spectrum(jb.StickInCircle(R=2.0, ell=1.0), s, 10, paired="yes")
+
+
+@pytest.mark.parametrize("per", ["time", "collision"])
+def test_by_default_the_scene_decides_whether_the_spectrum_is_paired(per):
+    """``paired=None`` (the default) pairs where the scene declares a symplectic flow, and carries every
+    vector where it does not: the same program, to the bit, as the explicit choice."""
+    from typing import ClassVar
+
+    class WithLosses(jb.StickInCircle):
+        symplectic_flow: ClassVar[bool] = False
+
+    s = jnp.asarray(ROTOR[1])
+    for scene, expected in ((jb.StickInCircle(**ROTOR[0]), True), (WithLosses(**ROTOR[0]), False)):
+        default = lyapunov_spectrum(scene, s, 20, per=per, n_history=2)
+        chosen = lyapunov_spectrum(scene, s, 20, per=per, n_history=2, paired=expected)
+        assert default.paired is expected and chosen.paired is expected
+        np.testing.assert_array_equal(np.asarray(default.history), np.asarray(chosen.history))
+    # A paired spectrum's lower half is its upper half mirrored, exactly; a full one's is measured.
+    paired = np.asarray(lyapunov_spectrum(jb.StickInCircle(**ROTOR[0]), s, 20, per=per, n_history=2).exponents)
+    full = np.asarray(lyapunov_spectrum(WithLosses(**ROTOR[0]), s, 20, per=per, n_history=2).exponents)
+    half = paired.size // 2
+    np.testing.assert_array_equal(paired[::-1][:half], -paired[:half])
+    assert np.all(full[::-1][:half] != -full[:half])
 
 
 def test_batch_and_vmap_agree_with_single_runs():

@@ -251,13 +251,14 @@ def _generic_3d_start():
 
 @pytest.fixture(scope="module")
 def chaotic_spectra():
+    """Every vector carried (``paired=False``): the pairing and the zeros are measured."""
     s2 = jnp.asarray(CHAOTIC_2D)
     generic = _generic_3d_start()
     return (
-        jb.lyapunov_spectrum(SCENE_2D, s2, N, n_history=5),
-        jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(embed(CHAOTIC_2D)), N, n_history=5),
-        jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(generic), N, n_history=5),
-        jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(generic), N, n_history=5, per="collision"),
+        jb.lyapunov_spectrum(SCENE_2D, s2, N, n_history=5, paired=False),
+        jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(embed(CHAOTIC_2D)), N, n_history=5, paired=False),
+        jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(generic), N, n_history=5, paired=False),
+        jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(generic), N, n_history=5, per="collision", paired=False),
     )
 
 
@@ -305,9 +306,10 @@ def test_vertical_bounce_lyapunov_exponents_match_the_closed_form():
     h, ell, speed = 3.0, 1.0, 1.3
     tr = bounce_trace(h, ell, 1.0, ell**2)
     lam = math.log((tr + math.sqrt(tr * tr - 4.0)) / 2.0) / ((h - 2 * ell) / speed)
-    sp2 = jb.lyapunov_spectrum(SCENE_2D, jnp.asarray([0.0, 1.5, 0.0, 0.2, speed, 0.0]), N, n_history=5)
+    # Every vector carried: the negative exponents measured, not mirrored.
+    sp2 = jb.lyapunov_spectrum(SCENE_2D, jnp.asarray([0.0, 1.5, 0.0, 0.2, speed, 0.0]), N, n_history=5, paired=False)
     state3 = embed([0.0, 1.5, 0.0, 0.2, speed, 0.0])
-    sp3 = jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(state3), N, n_history=5)
+    sp3 = jb.lyapunov_spectrum(SCENE_3D, jnp.asarray(state3), N, n_history=5, paired=False)
     t2, t3 = float(sp2.time), float(sp3.time)
     np.testing.assert_allclose(np.asarray(sp2.exponents)[[0, 3]], [lam, -lam], rtol=1e-3)
     assert np.abs(np.asarray(sp2.exponents)[1:3]).max() <= _tol(N, t2)

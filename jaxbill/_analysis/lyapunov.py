@@ -59,6 +59,9 @@ class LyapunovSpectrum(eqx.Module):
         time: ``()`` total elapsed time over the ``n`` collisions.
         n: number of collisions (static).
         per: ``"time"`` or ``"collision"`` (static).
+        paired: whether the lower half of the spectrum is the upper half's
+            negatives (the pairing rule, assumed) rather than measured (static;
+            see ``lyapunov_spectrum``'s ``paired``).
 
     ``n / time`` is the mean collision rate: per-time exponents times
     ``time / n`` are per-collision exponents and conversely.
@@ -71,6 +74,7 @@ class LyapunovSpectrum(eqx.Module):
     time: Float[Array, "*batch"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
+    paired: bool = eqx.field(static=True)
 
 
 def _initial_vectors(n_dim: int, k: int) -> jax.Array:
@@ -178,7 +182,9 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
     exponents = _descending(exponents)
     # Later states come from the map itself; only the start needs checking.
     exponents, history, t_hist, t = _poison_if(~scene.is_valid(state0), exponents, history, t_hist, t)
-    return LyapunovSpectrum(exponents=exponents, history=history, collisions=counts, times=t_hist, time=t, n=n, per=per)
+    return LyapunovSpectrum(
+        exponents=exponents, history=history, collisions=counts, times=t_hist, time=t, n=n, per=per, paired=partners > 0
+    )
 
 
 @eqx.filter_jit
@@ -198,7 +204,7 @@ def lyapunov_spectrum(
     per: str = "time",
     qr_every: int = 1,
     n_history: int = 100,
-    paired: bool = False,
+    paired: bool | None = None,
 ) -> LyapunovSpectrum:
     """The Lyapunov spectrum of an orbit, by Benettin's repeated QR.
 
@@ -230,18 +236,21 @@ def lyapunov_spectrum(
             safe; larger values are faster but overflow or lose the small
             exponents if the frame grows by more than ~1e150 between QRs.
         n_history: number of checkpoints kept in ``history`` (static).
-        paired: ``False`` (default): all tangent vectors are carried, and
-            the spectrum's pairing (below) checks the run. ``True``: only the
-            first half are carried (``k / 2`` per time; ``k / 2`` rounded up
-            per collision, whose middle exponent is the energy's zero), and
-            the lower half of the spectrum is the upper half's negatives, by
-            the pairing rule of a symplectic flow (``HasSymplecticFlow``;
-            every shipped scene): the same upper half as the full run's
-            leading vectors, 1.4-1.9x faster (a batch's steps per time at
-            0.5-0.8x the rate of plain collisions, the full run's at
-            0.34-0.45x; ``docs/performance.md``). The pairing is then
-            assumed, no longer measured: run ``paired=False`` once to see
-            how far a run of this length has converged.
+        paired: ``True``: only the first half of the tangent vectors are
+            carried (``k / 2`` per time; ``k / 2`` rounded up per collision,
+            whose middle exponent is the energy's zero), and the lower half
+            of the spectrum is the upper half's negatives, by the pairing
+            rule of a symplectic flow (``HasSymplecticFlow``): the same upper
+            half as the full run's leading vectors, 1.4-1.7x faster (a
+            batch's steps at 0.5-0.7x the rate of plain collisions, the full
+            run's at 0.34-0.44x; ``docs/performance.md``). ``False``: all
+            ``k`` vectors are carried and the pairing is measured, a check
+            of how far a run of this length has converged (the paired run
+            still measures the zero exponents of its upper half, whose decay
+            shows as much). ``None`` (default): ``True`` where the
+            scene declares a symplectic flow with an even number of
+            dynamical directions (every scene jaxbill ships), ``False``
+            otherwise. The result's ``paired`` says which ran.
 
     Returns:
         ``LyapunovSpectrum`` (with a leading batch axis for a batch of states):
@@ -268,8 +277,10 @@ def lyapunov_spectrum(
     n_dim = dynamical_size(scene)
     k = n_dim if per == "time" else n_dim - 1
     frame0 = _initial_vectors(n_dim, k)
-    if not isinstance(paired, bool | np.bool_):
-        raise ValueError(f"paired must be True or False; got {paired!r}")
+    if paired is not None and not isinstance(paired, bool | np.bool_):
+        raise ValueError(f"paired must be True, False or None (the scene decides); got {paired!r}")
+    if paired is None:
+        paired = getattr(scene, "symplectic_flow", False) is True and n_dim % 2 == 0
     partners = 0
     if paired:
         _check_pairing(scene, n_dim)

@@ -285,9 +285,9 @@ class HasSymplecticFlow(Protocol):
 
     Its Lyapunov exponents then come in pairs ``lambda, -lambda`` (the pairing
     rule; exponents do not depend on the coordinates, so it holds in the
-    dynamical frame the analyses use), so ``lyapunov_spectrum(..., paired=True)``
-    can carry half the tangent vectors and give the lower half of the spectrum
-    as the negatives of the upper. Every scene jaxbill ships sets
+    dynamical frame the analyses use), so ``lyapunov_spectrum`` (by default, or
+    with ``paired=True``) can carry half the tangent vectors and give the lower
+    half of the spectrum as the negatives of the upper. Every scene jaxbill ships sets
     ``symplectic_flow = True``; a scene with losses (a coefficient of
     restitution below one) must not.
     """
