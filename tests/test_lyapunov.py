@@ -9,6 +9,8 @@ the convergence history.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -103,12 +105,13 @@ def test_paired_spectrum_agrees_with_the_full_run_as_far_as_the_run_has_converge
     assert np.all(np.diff(np.asarray(paired.exponents)) <= 0)
 
 
+class WithLosses(jb.StickInCircle):
+    """A stick in a circle that does not claim a symplectic flow (as one with losses would not)."""
+
+    symplectic_flow: ClassVar[bool] = False
+
+
 def test_paired_spectrum_refuses_what_does_not_pair():
-    from typing import ClassVar
-
-    class WithLosses(jb.StickInCircle):
-        symplectic_flow: ClassVar[bool] = False
-
     s = jnp.asarray(ROTOR[1])
     with pytest.raises(ValueError, match="symplectic"):
         lyapunov_spectrum(WithLosses(R=2.0, ell=1.0), s, 10, paired=True)
@@ -120,20 +123,16 @@ def test_paired_spectrum_refuses_what_does_not_pair():
 def test_by_default_the_scene_decides_whether_the_spectrum_is_paired(per):
     """``paired=None`` (the default) pairs where the scene declares a symplectic flow, and carries every
     vector where it does not: the same program, to the bit, as the explicit choice."""
-    from typing import ClassVar
-
-    class WithLosses(jb.StickInCircle):
-        symplectic_flow: ClassVar[bool] = False
-
     s = jnp.asarray(ROTOR[1])
+    exponents = {}
     for scene, expected in ((jb.StickInCircle(**ROTOR[0]), True), (WithLosses(**ROTOR[0]), False)):
         default = lyapunov_spectrum(scene, s, 20, per=per, n_history=2)
         chosen = lyapunov_spectrum(scene, s, 20, per=per, n_history=2, paired=expected)
         assert default.paired is expected and chosen.paired is expected
         np.testing.assert_array_equal(np.asarray(default.history), np.asarray(chosen.history))
+        exponents[expected] = np.asarray(default.exponents)
     # A paired spectrum's lower half is its upper half mirrored, exactly; a full one's is measured.
-    paired = np.asarray(lyapunov_spectrum(jb.StickInCircle(**ROTOR[0]), s, 20, per=per, n_history=2).exponents)
-    full = np.asarray(lyapunov_spectrum(WithLosses(**ROTOR[0]), s, 20, per=per, n_history=2).exponents)
+    paired, full = exponents[True], exponents[False]
     half = paired.size // 2
     np.testing.assert_array_equal(paired[::-1][:half], -paired[:half])
     assert np.all(full[::-1][:half] != -full[:half])

@@ -279,25 +279,26 @@ def lyapunov_spectrum(
     frame0 = _initial_vectors(n_dim, k)
     if paired is not None and not isinstance(paired, bool | np.bool_):
         raise ValueError(f"paired must be True, False or None (the scene decides); got {paired!r}")
+    unpaired_because = _why_not_paired(scene, n_dim)
     if paired is None:
-        paired = getattr(scene, "symplectic_flow", False) is True and n_dim % 2 == 0
+        paired = unpaired_because is None
+    elif paired and unpaired_because is not None:
+        raise ValueError(f"paired=True needs {unpaired_because}")
     partners = 0
     if paired:
-        _check_pairing(scene, n_dim)
         partners = k // 2
         frame0 = frame0[:, : k - partners]
     return _spectrum_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, per, qr_every, n_history, frame0, partners)
 
 
-def _check_pairing(scene: Scene, n_dim: int) -> None:
-    """Raise unless the exponents of ``scene``'s flow (``n_dim`` of them) come in pairs ``lambda, -lambda``."""
+def _why_not_paired(scene: Scene, n_dim: int) -> str | None:
+    """``None`` where the exponents of ``scene``'s flow (``n_dim`` of them) come in pairs ``lambda, -lambda``;
+    else what is missing, for the error ``paired=True`` raises."""
     if getattr(scene, "symplectic_flow", False) is not True:
-        raise ValueError(
-            f"paired=True needs a scene whose flow is symplectic (symplectic_flow = True, the HasSymplecticFlow "
-            f"protocol of jaxbill._scenes.protocols); {type(scene).__name__} does not say so"
+        return (
+            f"a scene whose flow is symplectic (symplectic_flow = True, the HasSymplecticFlow protocol of "
+            f"jaxbill._scenes.protocols); {type(scene).__name__} does not say so"
         )
     if n_dim % 2:
-        raise ValueError(
-            f"paired=True needs an even number of dynamical directions (a symplectic flow has one); "
-            f"{type(scene).__name__} has {n_dim}"
-        )
+        return f"an even number of dynamical directions (a symplectic flow has one); {type(scene).__name__} has {n_dim}"
+    return None
