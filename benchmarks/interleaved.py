@@ -19,6 +19,7 @@ class Timing:
     first: float  # seconds of the first call (compilation included)
     median: float  # median wall seconds over the rounds
     cores: float  # this process's CPU seconds over wall seconds in the rounds
+    rounds: tuple[float, ...] = ()  # wall seconds of every timed call, in order
 
 
 def interleaved(contenders: dict[str, Callable[[], object]], rounds: int) -> dict[str, Timing]:
@@ -37,6 +38,8 @@ def interleaved(contenders: dict[str, Callable[[], object]], rounds: int) -> dic
             walls[name].append(time.perf_counter() - wall)
             cpus[name].append(time.process_time() - cpu)
     return {
-        name: Timing(first[name], statistics.median(walls[name]), sum(cpus[name]) / sum(walls[name]))
+        name: Timing(
+            first[name], statistics.median(walls[name]), sum(cpus[name]) / sum(walls[name]), tuple(walls[name])
+        )
         for name in contenders
     }
