@@ -67,7 +67,7 @@ import jaxbill as jb  # noqa: E402
 
 sys.path.insert(0, HERE)
 import numba_baseline as baseline  # noqa: E402
-from interleaved import Timing, interleaved  # noqa: E402
+from interleaved import Timing, interleaved, load_average  # noqa: E402
 
 SCENES = {
     "rotor ell=1.9": baseline.circle_params(2.0, 1.9),
@@ -141,13 +141,6 @@ def balance(args, devices) -> None:
             flush=True,
         )
     print()
-
-
-def load_average() -> str:
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        return "n/a"
 
 
 def main(args) -> None:

@@ -90,7 +90,7 @@ import jaxbill as jb  # noqa: E402
 
 sys.path.insert(0, HERE)
 import numba_baseline as baseline  # noqa: E402
-from interleaved import interleaved  # noqa: E402
+from interleaved import interleaved, load_average  # noqa: E402
 
 # label -> params (numba_baseline layout); the orbit table runs all, the batch tables BATCH_SCENES.
 SCENES = {
@@ -101,13 +101,6 @@ SCENES = {
     "walls h=3 ell=1": baseline.walls_params(3.0, 1.0),
 }
 QUICK_BATCH_SCENES = ("rotor ell=1.9", "lens ell=1.5")
-
-
-def load_average():
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        return "n/a"
 
 
 def rate(collisions, seconds):

@@ -8,6 +8,7 @@ the figure quoted.
 
 from __future__ import annotations
 
+import os
 import statistics
 import time
 from collections.abc import Callable
@@ -43,3 +44,11 @@ def interleaved(contenders: dict[str, Callable[[], object]], rounds: int) -> dic
         )
         for name in contenders
     }
+
+
+def load_average() -> str:
+    """The machine's 1, 5 and 15 minute load averages, for a report's header and footer."""
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "n/a"
