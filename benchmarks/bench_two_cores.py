@@ -78,7 +78,7 @@ SCENES = {
 
 def spread(timing: Timing) -> float:
     """The 90th percentile of a contender's calls over their median."""
-    return float(np.percentile(timing.rounds, 90)) / timing.median
+    return float(np.percentile(timing.round_seconds, 90)) / timing.median
 
 
 def speed_ups(args, devices) -> None:

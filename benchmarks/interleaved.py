@@ -20,7 +20,7 @@ class Timing:
     first: float  # seconds of the first call (compilation included)
     median: float  # median wall seconds over the rounds
     cores: float  # this process's CPU seconds over wall seconds in the rounds
-    rounds: tuple[float, ...] = ()  # wall seconds of every timed call, in order
+    round_seconds: tuple[float, ...]  # wall seconds of every timed call, in order
 
 
 def interleaved(contenders: dict[str, Callable[[], object]], rounds: int) -> dict[str, Timing]:
