@@ -29,6 +29,24 @@ the end that just bounced: it is departing, so it is not a root, and its step is
 taken from ``max(g, 0)``; this is how the root at ``t = 0`` of the end that just
 bounced is never found again.
 
+Sharper steps from the gap's own curvature. The bounds above hold along the
+whole flight, so each step is a Newton step corrected by the worst curvature
+of the flight. A scene that can also give each gap's second derivative
+``k = g_k''(t)`` at the current time, and a bound ``jerk >= |g_k'''|`` along
+the flight, gets a local bound instead: on a window ``[t, t + S]``,
+``g_k(t + s) >= g + d s + k s^2 / 2 - jerk s^3 / 6 >= g + d s - (-k + jerk S / 3) s^2 / 2``,
+so ``-k + jerk S / 3`` (never more than the flight's bound) serves as the
+lower curvature for steps up to ``S``, and ``k + jerk S / 3`` as the upper
+one for an upper root before ``S``. A falling gap's window is ``S = 2 g / |d|``,
+twice its Newton step, which always holds the flight-wide safe step (that
+step is at most ``g / |d|``); its step is capped at ``S``. Near a root the
+bracket then shrinks like ``s^3`` rather than ``s^2``, and a grazing root is
+no longer approached at a fixed linear ratio: the stick in a circle takes
+4.8 -> 3.3 steps per collision at ``ell = 1.9`` and 6.4 -> 4.9 at
+``ell = 1.0`` (64 orbits of 2000 collisions, no quiet interval), each step a
+division and a few products dearer. The roots found are the same to the
+time resolution (and every one is still proved).
+
 The loop is bounded by ``max_steps``; a search that hits the bound reports it
 (``ok = False``) instead of returning a root it did not prove.
 """
@@ -45,11 +63,13 @@ import jax.numpy as jnp
 _TIME_RESOLUTION_ULPS = 4.0
 
 
-def _step_below(g, slope, lower_curv):
+def _step_below(g, slope, lower_curv, rising_curv=None):
     """A lower bound ``s_lo`` on the distance to a gap's next root: a step along which it cannot vanish.
 
     ``g >= 0`` is the gap clamped at zero (an end through the wall by rounding
-    is treated as on it).
+    is treated as on it). ``rising_curv``: the same ``lower_curv`` where the
+    gap rises (``slope >= 0``), given where that is a flight constant and
+    ``lower_curv`` is not (its reciprocal is then the same at every step).
     """
     disc_lo = slope * slope + 2.0 * lower_curv * g
     root_lo = jnp.sqrt(disc_lo)
@@ -59,7 +79,7 @@ def _step_below(g, slope, lower_curv):
     # An explicit reciprocal: XLA turns division by a broadcast scalar into a
     # reciprocal multiply in some programs (one orbit) but not others (a
     # batch), which would make batched and single runs differ in the last bit.
-    rising = (slope + root_lo) * (1.0 / lower_curv)
+    rising = (slope + root_lo) * (1.0 / (lower_curv if rising_curv is None else rising_curv))
     s_lo = jnp.where(slope < 0.0, falling, rising)
     # 0/0 arises only for slope == 0 with no curvature (a motionless gap, which
     # never vanishes) or with g == 0 (an end resting on the wall with no normal
@@ -89,6 +109,9 @@ class RootBounds(NamedTuple):
             with ``quiet_out = inf`` that reaches it finds no root.
         time_scale: a characteristic flight time; the root is resolved to a few
             ulps of ``max(t, time_scale)``.
+        jerk: bound ``>= |g_k'''(t)|`` for all k and all t up to the root, for a
+            scene whose ``gaps_along_flight`` also gives the gaps' curvatures
+            (``None``: the search uses the fixed curvature bounds alone).
     """
 
     lower_curv: jax.Array
@@ -96,6 +119,7 @@ class RootBounds(NamedTuple):
     quiet_in: jax.Array
     quiet_out: jax.Array
     time_scale: jax.Array
+    jerk: jax.Array | None = None
 
 
 def search_start(bounds: RootBounds) -> jax.Array:
@@ -121,7 +145,45 @@ def first_smallest(values: tuple) -> jax.Array:
     return index
 
 
-def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
+# Rounding of a gap's computed curvature, relative to the flight's curvature bound.
+_CURVATURE_PAD_ULPS = 16.0
+
+
+class _LocalBounds(NamedTuple):
+    """Per gap: the window ``S`` (``inf``: none) and the lower curvature bound that holds on it."""
+
+    window: tuple
+    lower_curv: tuple
+
+
+def _local_bounds(clamped: tuple, slopes: tuple, curvatures: tuple, bounds: RootBounds) -> _LocalBounds:
+    """The windows of the falling gaps and their local lower curvature bounds (module docstring)."""
+    assert bounds.jerk is not None  # asked only of scenes that give curvatures
+    jerk_third = bounds.jerk * (1.0 / 3.0)
+    pad = _CURVATURE_PAD_ULPS * jnp.finfo(jnp.float64).eps * bounds.lower_curv
+    windows, lowers = [], []
+    for g, d, k in zip(clamped, slopes, curvatures, strict=True):
+        falling = d < 0.0
+        window = jnp.where(falling, 2.0 * g / jnp.where(falling, -d, 1.0), jnp.inf)
+        # jerk 0 (no spin) and an unbounded window: no third-order term at all, not 0 * inf.
+        spread = jnp.where(jerk_third > 0.0, jerk_third * window, 0.0)
+        windows.append(window)
+        lowers.append(jnp.where(falling, jnp.minimum(bounds.lower_curv, -k + spread + pad), bounds.lower_curv))
+    return _LocalBounds(tuple(windows), tuple(lowers))
+
+
+def _upper_step(gap, slope, curvature, window, bounds: RootBounds):
+    """``_step_above`` of the approached gap with the tighter of the flight's and its window's upper
+    curvature (``window``: ``inf`` for a gap that is not falling, which has no upper root anyway)."""
+    assert bounds.jerk is not None  # asked only of scenes that give curvatures
+    pad = _CURVATURE_PAD_ULPS * jnp.finfo(jnp.float64).eps * bounds.lower_curv
+    spread = jnp.where(bounds.jerk > 0.0, bounds.jerk * (1.0 / 3.0) * window, 0.0)
+    s_hi = _step_above(gap, slope, jnp.minimum(bounds.upper_curv, curvature + spread + pad))
+    # Past the window nothing is proven: no bracket this step (rare: the window is twice the Newton step).
+    return jnp.where(s_hi <= window, s_hi, jnp.inf)
+
+
+def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array, curvatures: tuple | None = None):
     """One safe step of the search from time ``t``, given the K gaps and their slopes there.
 
     ``gaps`` and ``slopes`` are tuples of K arrays of one shape (one lane's
@@ -135,12 +197,22 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
     or bracketed to the time resolution) or a hopeless lane (non-finite
     values, which end at once rather than make a batch wait out the step bound).
 
+    ``curvatures`` (with ``bounds.jerk``): the gaps' second derivatives at
+    ``t``, for the sharper steps of the module docstring.
+
     ``first_root`` and both drivers of the engine take exactly this step, so
     every path finds the same root in the same steps.
     """
     eps = jnp.finfo(jnp.float64).eps
     clamped = tuple(jnp.maximum(g, 0.0) for g in gaps)
-    s_lo = tuple(_step_below(g, d, bounds.lower_curv) for g, d in zip(clamped, slopes, strict=True))
+    local = None if curvatures is None or bounds.jerk is None else _local_bounds(clamped, slopes, curvatures, bounds)
+    if local is None:
+        s_lo = tuple(_step_below(g, d, bounds.lower_curv) for g, d in zip(clamped, slopes, strict=True))
+    else:
+        s_lo = tuple(
+            jnp.minimum(_step_below(g, d, lower, bounds.lower_curv), window)
+            for g, d, lower, window in zip(clamped, slopes, local.lower_curv, local.window, strict=True)
+        )
     index = first_smallest(s_lo)
     s = select(s_lo, index)
     t_next = t + s
@@ -152,7 +224,13 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
     # The upper bound of the approached gap only (one square root and division
     # less per gap; select then bound is bitwise bound then select).
     slope = select(slopes, index)
-    s_hi = _step_above(select(clamped, index), slope, bounds.upper_curv)
+    if local is None:
+        s_hi = _step_above(select(clamped, index), slope, bounds.upper_curv)
+    else:
+        assert curvatures is not None  # local bounds come from them
+        s_hi = _upper_step(
+            select(clamped, index), slope, select(curvatures, index), select(local.window, index), bounds
+        )
     converged = ((s_hi - s) <= resolution) | ((t_next == t) & (slope < 0.0))
     touching = [(g == 0.0) & (d < 0.0) for g, d in zip(clamped, slopes, strict=True)]
     touching_now, touching_index = touching[-1], jnp.int32(len(touching) - 1)
@@ -167,16 +245,23 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array):
     return t_next, index, touching_now | converged | ~finite
 
 
+def with_curvatures(evaluated: tuple) -> tuple:
+    """A scene's ``gaps_along_flight`` result as ``(gaps, slopes, curvatures)`` (``None``: not given)."""
+    return (*evaluated, None)[:3]
+
+
 def first_root(
-    gaps_and_slopes: Callable[[jax.Array], tuple[jax.Array, jax.Array]],
+    gaps_and_slopes: Callable[[jax.Array], tuple],
     bounds: RootBounds,
     max_steps: int,
 ):
     """First time ``t >= 0`` at which one of K gaps reaches zero while falling.
 
     Args:
-        gaps_and_slopes: ``t -> (gaps, slopes)``, each a tuple of K scalars:
-            the gaps and their time derivatives at time ``t``.
+        gaps_and_slopes: ``t -> (gaps, slopes)`` or ``(gaps, slopes, curvatures)``
+            (a scene's ``gaps_along_flight``), each a tuple of K scalars: the
+            gaps and their first (and second, or ``None``) time derivatives at
+            time ``t``.
         bounds: the flight's curvature bounds, quiet interval and time scale.
         max_steps: static bound on the number of steps.
 
@@ -191,8 +276,8 @@ def first_root(
         # One materialised evaluation: XLA may otherwise recompute the gaps in
         # each fusion that uses them, contracting to FMA differently, so that
         # the same gap could test as touching in one place and not in another.
-        gap, slope = jax.lax.optimization_barrier(gaps_and_slopes(t))
-        t_next, index, done = root_step(gap, slope, bounds, t)
+        gap, slope, curvature = with_curvatures(jax.lax.optimization_barrier(gaps_and_slopes(t)))
+        t_next, index, done = root_step(gap, slope, bounds, t, curvature)
         return t_next, index, done, steps + 1
 
     def keep_going(carry):

@@ -12,7 +12,10 @@ kernel, which lowers none of those.
   are transcendental in time (a turning stick), what its gaps depend on along
   the flight from ``state`` and the bounds the safe-step search needs;
 * ``scene.gaps_along_flight(profile, t) -> (gaps, slopes)``: the K gaps and
-  their time derivatives after a flight of ``t``, as two K-tuples;
+  their time derivatives after a flight of ``t``, as two K-tuples; or
+  ``(gaps, slopes, curvatures)``, with the second derivatives too, for a scene
+  whose ``RootBounds`` bound the third (sharper steps, see
+  ``jaxbill._engine.first_root``);
 * ``scene.closed_form_contact(state, constants) -> (t, index)``: for a scene
   whose gaps are polynomials in time (a static body, a point), the contact
   time directly;
@@ -45,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbill._engine.first_root import first_root, root_step, search_start, select
+from jaxbill._engine.first_root import first_root, root_step, search_start, select, with_curvatures
 from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT, TWO_PI, cos_sin_polynomial, remainder_two_pi
 from jaxbill._scenes.protocols import NO_CONTACT
 
@@ -323,8 +326,8 @@ def search_step(scene, lane: Lane) -> Lane:
     """One safe step of the lane's search (nothing for a lane whose search is over)."""
     if not scene.searches_for_roots:
         return lane
-    gap, slope = scene.gaps_along_flight(lane.profile, lane.t)
-    t, index, done = root_step(gap, slope, lane.bounds, lane.t)
+    gap, slope, curvature = with_curvatures(scene.gaps_along_flight(lane.profile, lane.t))
+    t, index, done = root_step(gap, slope, lane.bounds, lane.t, curvature)
     searching = ~lane.found
     return lane._replace(
         t=jnp.where(searching, t, lane.t),

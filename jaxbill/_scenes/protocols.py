@@ -119,8 +119,10 @@ class Scene(Protocol):
         """``(profile, RootBounds)``: what the gaps depend on along the flight, and the search's bounds."""
         ...
 
-    def gaps_along_flight(self, profile: Any, t: jax.Array, /) -> tuple[tuple, tuple]:
-        """``(gaps, slopes)``, two K-tuples: the gaps and their time derivatives after a flight of ``t``."""
+    def gaps_along_flight(self, profile: Any, t: jax.Array, /) -> tuple:
+        """``(gaps, slopes)``, two K-tuples: the gaps and their time derivatives after a flight of ``t``;
+        or ``(gaps, slopes, curvatures)`` with their second derivatives too, when ``root_search``'s
+        ``RootBounds`` give ``jerk`` (a bound on the third): the search then takes sharper steps."""
         ...
 
     def closed_form_contact(self, state: tuple, constants: Any, /) -> tuple[jax.Array, jax.Array]:

@@ -223,15 +223,24 @@ class StickInCircle(eqx.Module):
         return state, _rotor_bounds(self, state)
 
     def gaps_along_flight(self, state: tuple, t: jax.Array):
-        """Both ends' gaps ``R^2 - |P_k|^2`` and their time derivatives after a flight of ``t`` (2-tuples)."""
+        """Both ends' gaps ``R^2 - |P_k|^2`` and their first and second time derivatives after a flight
+        of ``t`` (2-tuples)."""
         x, y, alpha, vx, vy, omega = state
         cx, cy = x + vx * t, y + vy * t
         cu, su = cos_sin(alpha + omega * t)
         centre_gap = self.R**2 - self.ell**2 - (cx * cx + cy * cy)
         centre_slope = -2.0 * (cx * vx + cy * vy)
-        along = 2.0 * self.ell * (cx * cu + cy * su)
+        centre_curvature = -2.0 * (vx * vx + vy * vy)
+        along_unit = cx * cu + cy * su  # c . u
+        along = 2.0 * self.ell * along_unit
         along_slope = 2.0 * self.ell * (vx * cu + vy * su + omega * (cy * cu - cx * su))
-        return (centre_gap - along, centre_gap + along), (centre_slope - along_slope, centre_slope + along_slope)
+        # (c . u)'' = 2 omega v . u_perp - omega^2 c . u
+        along_curvature = 2.0 * self.ell * (omega * (2.0 * (vy * cu - vx * su) - omega * along_unit))
+        return (
+            (centre_gap - along, centre_gap + along),
+            (centre_slope - along_slope, centre_slope + along_slope),
+            (centre_curvature - along_curvature, centre_curvature + along_curvature),
+        )
 
     def closed_form_contact(self, state: tuple, lens_direction):
         """``(t, index)`` for the lens and the circle: each end (the centre) moves on a line."""
@@ -528,7 +537,9 @@ def _rotor_bounds(scene: StickInCircle, state: tuple) -> RootBounds:
     wobble = 2.0 * scene.ell * (2.0 * spin * speed + spin * spin * reach)
     lower_curv = 2.0 * speed * speed + wobble
     upper_curv = wobble - 2.0 * speed * speed
+    # g_k''' = -2 k ell W''' with |W'''| <= 3 omega^2 |v| + |omega|^3 |c(t)|.
+    jerk = 2.0 * scene.ell * (spin * spin * (3.0 * speed + spin * reach))
     # Resolve the root finely enough for both the position (|v| dt << R) and
     # the angle (|omega| dt << 1 rad, whatever ell is).
     time_scale = 1.0 / (speed / scene.R + spin)
-    return RootBounds(lower_curv, upper_curv, quiet_in, quiet_out, time_scale)
+    return RootBounds(lower_curv, upper_curv, quiet_in, quiet_out, time_scale, jerk)
