@@ -23,7 +23,8 @@ kernel has no ellipse), for each batch size, in this one process:
 Compile times are printed apart (the first call of each); timings are medians
 of ``--rounds`` calls in alternation. Ratios are collisions per second over
 the numba kernel's. Root steps per collision come from the numba kernel,
-which takes exactly jaxbill's steps (``numba_baseline.check_against_jaxbill``).
+which takes the plain method's steps: for the stick in a circle, more than
+jaxbill's sharper steps (``numba_baseline.check_against_jaxbill``).
 """
 
 from __future__ import annotations

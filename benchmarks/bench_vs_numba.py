@@ -17,7 +17,8 @@ float64, default inertia ``I = M ell^2``:
 3. the same batch on two cores: ``jb.run`` over two JAX devices against numba
    ``run_batch_parallel`` (``prange``) with two threads, and each one's
    speed-up from one core to two;
-4. numba's root steps per collision.
+4. root steps per collision: numba's, and jaxbill's from the same states
+   (jaxbill's sharper steps, ``numba_baseline``'s docstring).
 
 On CPU the JAX devices are the host's cores split by
 ``XLA_FLAGS=--xla_force_host_platform_device_count=D`` (``--cpu-devices``, or
@@ -112,7 +113,7 @@ def single_orbits(args):
     print()
     print(
         "| scene | jb.orbit s | numba orbit s | ratio jaxbill/numba | jb.orbit coll/s | numba coll/s "
-        "| cores used (jb, numba) | numba root steps / collision |"
+        "| cores used (jb, numba) | root steps / collision (numba, jaxbill) |"
     )
     print("|---|---|---|---|---|---|---|---|")
     n = args.orbit_collisions
@@ -130,9 +131,12 @@ def single_orbits(args):
 
         times = interleaved({"jaxbill": run_jaxbill, "numba": run_numba}, args.rounds)
         (t_jb, c_jb), (t_nb, c_nb) = ((times[name].median, times[name].cores) for name in ("jaxbill", "numba"))
+        # jaxbill's steps from the same states: those of numba's orbit
+        before = np.concatenate([state0[None], baseline.orbit(params, state0, min(n, 20_000))[2][:-1]])
+        jaxbill_steps = baseline.jaxbill_root_steps(params, before)
         print(
             f"| {label} | {t_jb:.3f} | {t_nb:.3f} | {t_jb / t_nb:.2f} | {rate(n, t_jb)} | {rate(n, t_nb)} "
-            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1]):.2f} |"
+            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1]):.2f}, {np.mean(jaxbill_steps):.2f} |"
         )
     print()
 

@@ -3,8 +3,14 @@
 Run:  python benchmarks/numba_baseline.py        (agreement with ``jb.orbit``, about 1 min)
 
 Nothing in ``jaxbill`` imports this file. It implements, in scalar float64 code,
-exactly the method of the library, so that ``bench_vs_numba.py`` compares two
-implementations of one algorithm, not two algorithms:
+the method of the library, so that ``bench_vs_numba.py`` compares two
+implementations of one algorithm, not two algorithms. One difference is kept on
+purpose: its safe steps use only the curvature bounds of the whole flight, the
+method as a user would write it from the paper's. jaxbill's search for the
+spinning stick in a circle also uses each gap's own curvature at the current
+time (``jaxbill._engine.first_root``, "sharper steps"), so it finds the same
+roots (to the time resolution) in fewer steps: what the benchmarks compare
+for that scene is the library against the plain method.
 
 * the spinning stick in a circle (``StickInCircle``, finite inertia): the quiet
   interval of ``_disc_crossing`` (radius ``R - ell``), the curvature bounds and
@@ -735,8 +741,8 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
       collision, against jaxbill's state after it (the two implementations'
       own difference, free of chaotic growth): the largest relative state
       difference (``_relative_difference``) and flight-time difference, whether
-      the contact codes and the root steps (jaxbill's counted with its private
-      search) are the same;
+      the contact codes are the same, and the root steps per collision of each
+      (jaxbill's counted with its private search);
     * orbits: the largest relative state difference of the two orbits run
       independently (rounding differences grow with the Lyapunov exponent),
       whether their contact codes agree, and the first collision at which they
@@ -757,7 +763,8 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
             "step_state_diff": 0.0,
             "step_time_diff": 0.0,
             "same_step_contacts": True,
-            "same_root_steps": True,
+            "numba_one_step_root_steps": 0,
+            "jaxbill_one_step_root_steps": 0,
             "orbit_state_diff": 0.0,
             "same_orbit_contacts": True,
         }
@@ -773,7 +780,8 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
             row["step_state_diff"] = max(row["step_state_diff"], state_diff)
             row["step_time_diff"] = max(row["step_time_diff"], float((np.abs(dt - ref_dt) / np.abs(ref_dt)).max()))
             row["same_step_contacts"] &= bool(np.array_equal(contact, ref_contact[:collisions]))
-            row["same_root_steps"] &= bool(np.array_equal(steps, jaxbill_root_steps(params, before)))
+            row["numba_one_step_root_steps"] += int(steps.sum())
+            row["jaxbill_one_step_root_steps"] += int(jaxbill_root_steps(params, before).sum())
 
             _, contact, states, root_steps = orbit(params, state0, long_collisions)
             diff = _relative_difference(states, ref_state)
@@ -791,17 +799,20 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
         print(f"numba loop vs jb.orbit: {orbits} random orbits per scene, first {collisions} collisions")
         print()
         print(
-            "| scene | one step: rel. state diff | one step: rel. flight-time diff | same contacts | same root steps "
+            "| scene | one step: rel. state diff | one step: rel. flight-time diff | same contacts "
+            "| one step: root steps / collision (numba, jaxbill) "
             f"| orbits: rel. state diff | same contacts | first collision > 1e-6 apart (of {long_collisions}) "
             "| numba root steps / collision (max) |"
         )
         print("|---|---|---|---|---|---|---|---|---|")
+        checked = orbits * collisions
         for r in rows:
             horizon = "none" if r["horizon"] > long_collisions else str(r["horizon"])
             print(
                 f"| {r['scene']} | {r['step_state_diff']:.1e} | {r['step_time_diff']:.1e} "
                 f"| {r['same_step_contacts']} "
-                f"| {r['same_root_steps']} | {r['orbit_state_diff']:.1e} | {r['same_orbit_contacts']} | {horizon} "
+                f"| {r['numba_one_step_root_steps'] / checked:.2f}, {r['jaxbill_one_step_root_steps'] / checked:.2f} "
+                f"| {r['orbit_state_diff']:.1e} | {r['same_orbit_contacts']} | {horizon} "
                 f"| {r['root_steps_per_collision']:.2f} ({r['max_root_steps']}) |"
             )
     return rows
