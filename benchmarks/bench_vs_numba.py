@@ -131,12 +131,13 @@ def single_orbits(args):
 
         times = interleaved({"jaxbill": run_jaxbill, "numba": run_numba}, args.rounds)
         (t_jb, c_jb), (t_nb, c_nb) = ((times[name].median, times[name].cores) for name in ("jaxbill", "numba"))
-        # jaxbill's steps from the same states: those of numba's orbit
-        before = np.concatenate([state0[None], baseline.orbit(params, state0, min(n, 20_000))[2][:-1]])
+        # Both counted from the same states, those of numba's orbit's first collisions.
+        counted = min(n, 20_000)
+        before = np.concatenate([state0[None], baseline.orbit(params, state0, counted)[2][:-1]])
         jaxbill_steps = baseline.jaxbill_root_steps(params, before)
         print(
             f"| {label} | {t_jb:.3f} | {t_nb:.3f} | {t_jb / t_nb:.2f} | {rate(n, t_jb)} | {rate(n, t_nb)} "
-            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1]):.2f}, {np.mean(jaxbill_steps):.2f} |"
+            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1][:counted]):.2f}, {np.mean(jaxbill_steps):.2f} |"
         )
     print()
 
