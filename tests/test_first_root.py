@@ -74,7 +74,7 @@ def test_sharper_steps_find_the_same_roots_in_fewer_steps(ell, spin_scale):
         if not sharper:
             bounds = bounds._replace(jerk=None)
         t, index, steps, ok = first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, MAX_ROOT_STEPS)
-        slope = jnp.where(index == 0, *[s for s in scene.gaps_along_flight(profile, t)[1]])
+        slope = jnp.where(index == 0, *scene.gaps_along_flight(profile, t)[1])
         return t, index, steps, ok, slope, bounds.time_scale
 
     runs = {
