@@ -150,9 +150,11 @@ _CURVATURE_PAD_ULPS = 16.0
 
 
 class _LocalBounds(NamedTuple):
-    """Per gap: the window ``S`` (``inf``: none) and the lower curvature bound that holds on it."""
+    """Per gap: the window ``S`` (``inf``: none), what it adds to the gap's own curvature in either
+    direction (``jerk S / 3`` and the rounding pad), and the lower curvature bound that holds on it."""
 
     window: tuple
+    margin: tuple
     lower_curv: tuple
 
 
@@ -161,24 +163,22 @@ def _local_bounds(clamped: tuple, slopes: tuple, curvatures: tuple, bounds: Root
     assert bounds.jerk is not None  # asked only of scenes that give curvatures
     jerk_third = bounds.jerk * (1.0 / 3.0)
     pad = _CURVATURE_PAD_ULPS * jnp.finfo(jnp.float64).eps * bounds.lower_curv
-    windows, lowers = [], []
+    windows, margins, lowers = [], [], []
     for g, d, k in zip(clamped, slopes, curvatures, strict=True):
         falling = d < 0.0
         window = jnp.where(falling, 2.0 * g / jnp.where(falling, -d, 1.0), jnp.inf)
         # jerk 0 (no spin) and an unbounded window: no third-order term at all, not 0 * inf.
-        spread = jnp.where(jerk_third > 0.0, jerk_third * window, 0.0)
+        margin = jnp.where(jerk_third > 0.0, jerk_third * window, 0.0) + pad
         windows.append(window)
-        lowers.append(jnp.where(falling, jnp.minimum(bounds.lower_curv, -k + spread + pad), bounds.lower_curv))
-    return _LocalBounds(tuple(windows), tuple(lowers))
+        margins.append(margin)
+        lowers.append(jnp.where(falling, jnp.minimum(bounds.lower_curv, margin - k), bounds.lower_curv))
+    return _LocalBounds(tuple(windows), tuple(margins), tuple(lowers))
 
 
-def _upper_step(gap, slope, curvature, window, bounds: RootBounds):
+def _upper_step(gap, slope, curvature, window, margin, bounds: RootBounds):
     """``_step_above`` of the approached gap with the tighter of the flight's and its window's upper
     curvature (``window``: ``inf`` for a gap that is not falling, which has no upper root anyway)."""
-    assert bounds.jerk is not None  # asked only of scenes that give curvatures
-    pad = _CURVATURE_PAD_ULPS * jnp.finfo(jnp.float64).eps * bounds.lower_curv
-    spread = jnp.where(bounds.jerk > 0.0, bounds.jerk * (1.0 / 3.0) * window, 0.0)
-    s_hi = _step_above(gap, slope, jnp.minimum(bounds.upper_curv, curvature + spread + pad))
+    s_hi = _step_above(gap, slope, jnp.minimum(bounds.upper_curv, curvature + margin))
     # Past the window nothing is proven: no bracket this step (rare: the window is twice the Newton step).
     return jnp.where(s_hi <= window, s_hi, jnp.inf)
 
@@ -228,9 +228,8 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array, curv
         s_hi = _step_above(select(clamped, index), slope, bounds.upper_curv)
     else:
         assert curvatures is not None  # local bounds come from them
-        s_hi = _upper_step(
-            select(clamped, index), slope, select(curvatures, index), select(local.window, index), bounds
-        )
+        curvature, window, margin = (select(v, index) for v in (curvatures, local.window, local.margin))
+        s_hi = _upper_step(select(clamped, index), slope, curvature, window, margin, bounds)
     converged = ((s_hi - s) <= resolution) | ((t_next == t) & (slope < 0.0))
     touching = [(g == 0.0) & (d < 0.0) for g, d in zip(clamped, slopes, strict=True)]
     touching_now, touching_index = touching[-1], jnp.int32(len(touching) - 1)
