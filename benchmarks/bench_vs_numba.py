@@ -121,23 +121,24 @@ def single_orbits(args):
         scene = baseline.jaxbill_scene(params)
         state0 = baseline.random_states(params, 1, seed=7)[0]
         device_state0 = jnp.asarray(state0)
-        steps = []
+        numba_orbits = []  # the last call's (t, contact, states, root_steps)
 
         def run_jaxbill():
             jax.block_until_ready(jb.orbit(scene, device_state0, n))
 
         def run_numba():
-            steps.append(baseline.orbit(params, state0, n)[3])
+            numba_orbits[:] = [baseline.orbit(params, state0, n)]
 
         times = interleaved({"jaxbill": run_jaxbill, "numba": run_numba}, args.rounds)
         (t_jb, c_jb), (t_nb, c_nb) = ((times[name].median, times[name].cores) for name in ("jaxbill", "numba"))
         # Both counted from the same states, those of numba's orbit's first collisions.
         counted = min(n, 20_000)
-        before = np.concatenate([state0[None], baseline.orbit(params, state0, counted)[2][:-1]])
+        _, _, numba_states, numba_steps = numba_orbits[0]
+        before = np.concatenate([state0[None], numba_states[: counted - 1]])
         jaxbill_steps = baseline.jaxbill_root_steps(params, before)
         print(
             f"| {label} | {t_jb:.3f} | {t_nb:.3f} | {t_jb / t_nb:.2f} | {rate(n, t_jb)} | {rate(n, t_nb)} "
-            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(steps[-1][:counted]):.2f}, {np.mean(jaxbill_steps):.2f} |"
+            f"| {c_jb:.1f}, {c_nb:.1f} | {np.mean(numba_steps[:counted]):.2f}, {np.mean(jaxbill_steps):.2f} |"
         )
     print()
 
