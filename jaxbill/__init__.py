@@ -56,6 +56,12 @@ from jaxbill._explorer import explore  # noqa: E402
 from jaxbill._runs.files import Checkpoint  # noqa: E402
 from jaxbill._runs.guard import RunInterrupted  # noqa: E402
 from jaxbill._runs.streaming import Run, Section, SectionPoints, run  # noqa: E402
+from jaxbill._scenes.bodies.base import Body  # noqa: E402
+from jaxbill._scenes.bodies.dumbbell import Dumbbell  # noqa: E402
+from jaxbill._scenes.bodies.ellipse import EllipseBody  # noqa: E402
+from jaxbill._scenes.bodies.point import PointBody  # noqa: E402
+from jaxbill._scenes.bodies.polygon import PolygonBody  # noqa: E402
+from jaxbill._scenes.body_in_table import BodyInTable  # noqa: E402
 from jaxbill._scenes.circle.scene import StickInCircle  # noqa: E402
 from jaxbill._scenes.circle.sections import (  # noqa: E402
     birkhoff_section,
@@ -69,6 +75,13 @@ from jaxbill._scenes.circle.sections import (  # noqa: E402
 )
 from jaxbill._scenes.ellipse.scene import StickInEllipse  # noqa: E402
 from jaxbill._scenes.protocols import angular_momentum, end_points, energy  # noqa: E402
+from jaxbill._scenes.tables.base import Motion, Piece, Table  # noqa: E402
+from jaxbill._scenes.tables.circle import Circle, DiscWall  # noqa: E402
+from jaxbill._scenes.tables.convex_function import ConvexTable, FunctionWall  # noqa: E402
+from jaxbill._scenes.tables.ellipse import Ellipse, EllipseWall  # noqa: E402
+from jaxbill._scenes.tables.flat import HalfPlane, Strip  # noqa: E402
+from jaxbill._scenes.tables.polygon import Polygon  # noqa: E402
+from jaxbill._scenes.tables.stadium import CapsuleWall, Stadium  # noqa: E402
 from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D  # noqa: E402
 from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D  # noqa: E402
 from jaxbill._scenes.walls.sections import (  # noqa: E402
@@ -82,6 +95,26 @@ from jaxbill._scenes.walls.sections import (  # noqa: E402
 )
 
 __all__ = [
+    "BodyInTable",
+    "PointBody",
+    "Dumbbell",
+    "PolygonBody",
+    "EllipseBody",
+    "Circle",
+    "Ellipse",
+    "Stadium",
+    "Polygon",
+    "Strip",
+    "ConvexTable",
+    "Body",
+    "Table",
+    "Piece",
+    "Motion",
+    "DiscWall",
+    "EllipseWall",
+    "HalfPlane",
+    "CapsuleWall",
+    "FunctionWall",
     "StickInCircle",
     "StickInEllipse",
     "StickBetweenWalls2D",

@@ -19,7 +19,7 @@ jax = pytest.importorskip("jax")
 jb = pytest.importorskip("jaxbill")
 import jax.numpy as jnp  # noqa: E402
 
-from jaxbill._scenes.smooth_table import EllipseTable  # noqa: E402
+from jaxbill._scenes.tables.ellipse import EllipseWall as EllipseTable  # noqa: E402
 
 SCENES = {
     "rotor_ratio_2": dict(a=2.0, b=1.0, ell=0.6),

@@ -241,6 +241,8 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array, curv
     finite = jnp.isfinite(t_next)
     for g, d in zip(gaps, slopes, strict=True):
         finite = finite & jnp.isfinite(g) & jnp.isfinite(d)
+    # A hopeless lane proves no root: its time is NaN (an infinite one stays: no root ever).
+    t_next = jnp.where(finite | jnp.isinf(t_next), t_next, jnp.nan)
     return t_next, index, touching_now | converged | ~finite
 
 

@@ -210,6 +210,7 @@ def where(condition, if_true: tuple, if_false: tuple) -> tuple:
 def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok):
     """A collision's result: unchanged for a flight that never ends, NaN for a failed search."""
     reached = jnp.isfinite(t)
+    ok = ok & ~jnp.isnan(t)  # a search that met a NaN gap proved nothing
     new_state = where(reached, moved_and_kicked, state)
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
     new_state = tuple(jnp.where(ok, a, jnp.nan) for a in new_state)

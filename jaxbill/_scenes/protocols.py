@@ -326,9 +326,9 @@ class SamplesStates(Protocol):
         ...
 
 
-def chosen_section(scene: HasSection, name: str | None) -> str:
+def chosen_section(scene: Any, name: str | None) -> str:
     """``name``, or the scene's area-preserving section for ``None``; ValueError naming the choices otherwise."""
-    name = scene.area_preserving_section if name is None else name
+    name = str(scene.area_preserving_section) if name is None else name
     if name not in scene.sections:
         raise ValueError(f"name must be one of {scene.sections} for {type(scene).__name__}; got {name!r}")
     return name

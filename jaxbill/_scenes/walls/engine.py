@@ -43,6 +43,9 @@ CEILING = 3  # contact code of end P1 on the ceiling (P2: -3)
 GAP_NAMES = ("end P1 (floor)", "end P2 (floor)", "end P1 (ceiling)", "end P2 (ceiling)")
 END_SIGNS = (1.0, -1.0, 1.0, -1.0)  # e_k of each gap
 _CONTACT_CODES = (FLOOR, -FLOOR, CEILING, -CEILING)
+# Every contact code of a wall scene's collisions: none (0), P1/P2 on the floor (1, -1) or
+# the ceiling (3, -3), both ends at once (2).
+CONTACT_CODES = (-CEILING, -FLOOR, NO_CONTACT, FLOOR, SEVERAL_CONTACTS, CEILING)
 
 # Two gaps within this many ulps of h at one contact touch at the same instant
 # (the stick landing flat: a kink of the (theta, z) billiard's wall).
@@ -248,9 +251,7 @@ class WallsEngine:
     """
 
     kind: str  # declared for type checkers; the scene's own (static) field
-    # Every contact code of its collisions: none (0), P1/P2 on the floor (1, -1) or
-    # the ceiling (3, -3), both ends at once (2).
-    contact_codes: ClassVar[tuple[int, ...]] = (-CEILING, -FLOOR, NO_CONTACT, FLOOR, SEVERAL_CONTACTS, CEILING)
+    contact_codes: ClassVar[tuple[int, ...]] = CONTACT_CODES
 
     @property
     def searches_for_roots(self) -> bool:

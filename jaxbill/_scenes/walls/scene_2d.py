@@ -19,24 +19,40 @@ is horizontal. The horizontal motion is free and decoupled.
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import ClassVar, cast
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import ArrayLike
 
 from jaxbill._check.walls import ReducedWallsFlight
-from jaxbill._engine.step import components, cos_sin, stacked, wrapped_angle
+from jaxbill._engine.step import cos_sin
 from jaxbill._engine.validation import require_x64
-from jaxbill._scenes.protocols import SectionChart, chosen_section, component
+from jaxbill._scenes.bodies.dumbbell import Dumbbell
+from jaxbill._scenes.body_in_table import BodyInTable
+from jaxbill._scenes.protocols import SectionChart, chosen_section
+from jaxbill._scenes.tables.flat import Strip
 from jaxbill._scenes.walls import engine as walls
 from jaxbill._scenes.walls.charts import WALLS_2D_CHART
 from jaxbill._scenes.walls.sections import floor_section, floor_state
 
 
-class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
+class StickFromVertical(Dumbbell):
+    """A symmetric stick whose angle ``theta`` is measured from the upward vertical, turning towards ``+x``:
+    the ends at ``c +- ell (sin theta, cos theta)``."""
+
+    def __init__(self, ell, mass, inertia, kind: str):
+        super().__init__(ell, None, mass, inertia, kind=kind)
+
+    def offsets(self, cos, sin):
+        return (self.l1 * sin, self.l1 * cos), (-(self.l1 * sin), -(self.l1 * cos))
+
+    def turn_vector(self, rx, ry):
+        # d/dtheta (sin, cos) = (cos, -sin): a quarter turn clockwise.
+        return ry, -rx
+
+
+class StickBetweenWalls2D(BodyInTable):
     """A stick of half-length ``ell`` bouncing between a floor ``z = 0`` and a ceiling ``z = h``, in a plane.
 
     Args:
@@ -55,108 +71,44 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
     search.
     """
 
-    h: jax.Array
-    ell: jax.Array
-    mass: jax.Array
-    inertia: jax.Array
-    kind: str = eqx.field(static=True)
-
     state_size: ClassVar[int] = 6
     state_layout: ClassVar[str] = "[x, z, theta, vx, vz, omega]"
     gap_names: ClassVar[tuple[str, ...]] = walls.GAP_NAMES
     wall_name: ClassVar[str] = "the walls"
+    # P1/P2 on the floor (1, -1) and on the ceiling (3, -3), as the gaps come, wall by wall.
+    gap_codes: ClassVar[tuple[int, ...]] = (walls.FLOOR, -walls.FLOOR, walls.CEILING, -walls.CEILING)
+    contact_codes: ClassVar[tuple[int, ...]] = walls.CONTACT_CODES
 
     def __init__(self, h, ell, mass=1.0, inertia=None):
         require_x64()  # float32 leaves would void every accuracy claim
-        self.h, self.ell, self.mass, self.inertia, self.kind = walls.scene_leaves(h, ell, mass, inertia)
+        h, ell, mass, inertia, kind = walls.scene_leaves(h, ell, mass, inertia)
+        super().__init__(StickFromVertical(ell, mass, inertia, kind), Strip(h))
 
     def check(self) -> None:
         """Raise ValueError if the (possibly replaced) parameters are invalid or change ``kind``."""
         walls.check_scene(self)
 
-    # -- engine interface (jaxbill._scenes.protocols) --------------------------------------
+    @property
+    def h(self) -> jax.Array:
+        """The distance between the walls."""
+        return cast(Strip, self.table).h
+
+    @property
+    def ell(self) -> jax.Array:
+        """The stick's half-length."""
+        return cast(Dumbbell, self.body).l1
 
     @property
     def batch_chunk(self) -> int:
         return walls.batch_chunk(self.kind)
 
-    @property
-    def gap_scale(self) -> jax.Array:
-        return self.h
-
-    def check_state_values(self, state: np.ndarray) -> None:
-        walls.check_batch_of_states(self, state)
-        if self.kind == "static" and np.any(state[..., 5] != 0):
-            raise ValueError("omega must be 0 for a stick that never turns (inertia = inf)")
-
-    def is_valid(self, state: jax.Array) -> jax.Array:
-        ok = walls.parameters_are_valid(self.h, self.ell, self.mass, self.inertia, self.kind)
-        ok &= jnp.all(jnp.isfinite(state)) & self.motion_is_representable(state) & walls.state_is_inside(self, state)
-        if self.kind == "static":
-            ok &= state[5] == 0.0
-        return ok
-
     def motion_is_representable(self, state) -> jax.Array:
         """Traceable: the velocities' squares and the energy are ordinary float64 numbers."""
         return walls.motion_is_representable(self, state[..., 3:5], state[..., 5] ** 2, state)
 
-    def orbit_constants(self, state0: tuple) -> None:
-        return None
-
-    # -- the engine's questions (see jaxbill._engine.step) -------------------------------
-    # States are components (x, z, theta, vx, vz, omega); results are tuples.
-
-    def moved(self, state: tuple, t) -> tuple:
-        """The free flight of the components for time ``t``."""
-        return self._flight(state, t)
-
-    def end_gaps(self, state: tuple) -> tuple:
-        """``(z1, z2, h - z1, h - z2)`` of the components."""
-        return self.end_gaps_and_speeds(state)[0]
-
-    def end_approach_speeds(self, state: tuple) -> tuple:
-        """The rates at which the four gaps close (> 0: that end approaches that wall)."""
-        return self.end_gaps_and_speeds(state)[1]
-
-    def end_gaps_and_speeds(self, state: tuple) -> tuple:
-        """``(end_gaps, end_approach_speeds)`` from one cosine and sine of ``theta``."""
-        cos, sin = cos_sin(state[2])
-        return (
-            walls.end_gaps(state[1], self.ell * cos, self.h),
-            walls.end_gaps_closing(state[4], -self.ell * sin * state[5], 1.0),
-        )
-
-    def _flight(self, state: tuple, t) -> tuple:
-        x, z, theta, vx, vz, omega = state
-        if self.kind == "rotor":
-            theta = wrapped_angle(theta + omega * t)
-        return x + vx * t, z + vz * t, theta, vx, vz, omega
-
-    # -- geometry and flight -------------------------------------------------------
-
-    def vertical_profile(self, state):
-        """``(z0, vz, A, D, W^2, ell, h)`` of ``jaxbill._scenes.walls.engine``: ``a = cos theta``."""
-        theta, omega = state[2], state[5]
-        cos, sin = cos_sin(theta)
-        return (state[1], state[4], cos, -omega * sin, omega * omega, self.ell, self.h)
-
     def end_points(self, state: jax.Array) -> jax.Array:
         """Ends ``[P1, P2]`` as ``(x, z)``, shape ``(..., 2, 2)``."""
-        c = state[..., 0:2]
-        arm = self.ell[..., None] * jnp.stack([jnp.sin(state[..., 2]), jnp.cos(state[..., 2])], axis=-1)
-        return jnp.stack([c + arm, c - arm], axis=-2)
-
-    def gaps(self, state: jax.Array) -> jax.Array:
-        """``[z1, z2, h - z1, h - z2]``, shape ``(..., 4)``, >= 0 inside (length units)."""
-        return jnp.stack(self.end_gaps(components(state)), axis=-1)
-
-    def approach_speeds(self, state: jax.Array) -> jax.Array:
-        """Rate at which each gap closes, shape ``(..., 4)`` (> 0: the end approaches that wall)."""
-        return jnp.stack(self.end_approach_speeds(components(state)), axis=-1)
-
-    def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
-        """Free flight for time ``t``; ``theta`` is wrapped into ``[-pi, pi)``."""
-        return stacked(self._flight(components(state), t))
+        return self.contact_points(state)[..., :2, :]
 
     def kick(self, state: tuple, gap: jax.Array) -> tuple:
         """Elastic frictionless impulse of the wall touched in gap ``gap`` (0..3), on components.
@@ -173,19 +125,6 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
         inv_inertia = 1.0 / self.inertia if self.kind == "rotor" else jnp.zeros_like(self.inertia)
         impulse = -2.0 * (vz + lever * omega) / (inv_mass + lever * lever * inv_inertia)
         return x, z, theta, vx, vz + impulse * inv_mass, omega + impulse * inv_inertia * lever
-
-    # -- invariants -------------------------------------------------------------------
-
-    def energy(self, state: jax.Array) -> jax.Array:
-        """``M (vx^2 + vz^2)/2 + I omega^2/2`` (a stick that never turns drops the spin term)."""
-        vx, vz, omega = (component(state, i) for i in (3, 4, 5))
-        e = 0.5 * self.mass * (vx**2 + vz**2)
-        if self.kind == "static":
-            return e
-        return e + 0.5 * self.inertia * omega**2
-
-    # == analysis (tangent maps, Lyapunov spectra, periodic orbits: jaxbill._engine.tangent) ======
-    # Added for the analysis modules; the engine above does not use these.
 
     @property
     def dynamical_indices(self) -> tuple[int, ...]:
@@ -211,7 +150,6 @@ class StickBetweenWalls2D(walls.WallsEngine, eqx.Module):
     area_preserving_section: ClassVar[str] = "floor"
     # The horizontal drift divides out.
     periodic_symmetry: ClassVar[str] = "translation"
-    symplectic_flow: ClassVar[bool] = True  # HasSymplecticFlow: elastic and Hamiltonian
 
     def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
         """Section points ``(..., 2)`` at floor collisions, NaN elsewhere (``HasSection``; ``jb.floor_section``).

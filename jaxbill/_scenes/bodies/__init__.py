@@ -1,0 +1,1 @@
+"""The bodies: rigid planar bodies and the way each touches a wall."""

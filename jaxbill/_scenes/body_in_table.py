@@ -1,0 +1,490 @@
+"""A rigid body in a convex table: any ``Body`` in any ``Table``, one scene for the engine and the analyses.
+
+State layout (float64, shape ``(6,)``)::
+
+    [x, y, alpha, vx, vy, omega]
+
+``(x, y)`` is the body's centre of mass (length), ``alpha`` its orientation
+(radians; wrapped into ``[-pi, pi)`` after each collision), ``(vx, vy)`` and
+``omega`` their rates. A contact point fixed in the body at ``b`` sits at
+``c + R(alpha) b``.
+
+Contacts. The body's ``K`` contacts with each of the table's ``P`` walls are
+the scene's gaps, numbered wall by wall: gap ``g = i K + k`` is contact ``k``
+on wall ``i`` (``gap_names`` names them, ``gap_codes`` gives each its contact
+code in ``Orbit.contact``: ``3 + g``; ``0`` none, ``2`` several at once).
+
+The collision map. A body that turns has transcendental gaps: the first
+contact is found by the certified safe-step search
+(``jaxbill._engine.first_root``) from the walls' bounds; one that never turns
+(infinite inertia) or a point moves its contacts on straight lines, and where
+every wall has a closed-form exit time the scene compiles no search at all.
+The impulse is the one mass-metric reflection (``jaxbill._scenes.impulse``).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import ArrayLike
+
+from jaxbill._analysis.chaos import table_shell_candidates
+from jaxbill._engine.first_root import RootBounds, first_smallest, select
+from jaxbill._engine.step import components, computed_once, cos_sin, stacked, wrapped_angle
+from jaxbill._engine.validation import (
+    is_concrete,
+    motion_is_representable,
+    on_wall_not_inwards,
+    require_x64,
+)
+from jaxbill._scenes import body_sections, impulse
+from jaxbill._scenes.bodies.base import Body
+from jaxbill._scenes.protocols import (
+    NO_CONTACT,
+    SEVERAL_CONTACTS,
+    WALL_TOLERANCE,
+    SectionChart,
+    chosen_section,
+    component,
+)
+from jaxbill._scenes.tables.base import Motion, Table
+
+# The contact code of gap g (0 and 2 are taken: no contact, several at once).
+FIRST_GAP_CODE = 3
+
+# Orbits per vectorised lane of a batch on a CPU: a turning body's search branches (one orbit after
+# another, each bitwise the orbit alone), a closed form vectorises.
+_BATCH_CHUNK = {"rotor": 1, "static": 256, "point": 256}
+
+
+def _contact_name(contact: str, wall: str) -> str:
+    return f"{contact} on {wall}"
+
+
+class BodyInTable(eqx.Module):
+    """A rigid ``body`` bouncing elastically inside a convex ``table``.
+
+    Args:
+        body: a ``jb.PointBody``, ``jb.Dumbbell``, ``jb.PolygonBody``,
+            ``jb.EllipseBody`` or any ``jb.Body``.
+        table: a ``jb.Circle``, ``jb.Ellipse``, ``jb.Stadium``, ``jb.Polygon``,
+            ``jb.Strip``, ``jb.ConvexTable`` or any ``jb.Table``.
+
+    Both are ``equinox.Module``s: their parameters are differentiable leaves,
+    their kind (a point, a body that never turns) is static, so a scene
+    compiles only what it needs.
+
+    Raises:
+        TypeError: for a body or table of another type.
+        ValueError: for a body that cannot touch one of the table's walls (the
+            coin touches flat walls only) or that cannot fit in the table.
+    """
+
+    body: Body
+    table: Table
+
+    state_size: ClassVar[int] = 6
+    state_layout: ClassVar[str] = "[x, y, alpha, vx, vy, omega]"
+    symplectic_flow: ClassVar[bool] = True  # elastic impulses, a Hamiltonian flight
+    periodic_symmetry: ClassVar[str] = "none"  # a periodic orbit closes in every coordinate
+    periodic_angles: ClassVar[tuple[int, ...]] = (2,)  # compared modulo 2 pi when an orbit closes
+
+    def __init__(self, body: Body, table: Table):
+        require_x64()
+        if not isinstance(body, Body):
+            raise TypeError(f"body must be a jaxbill body (jb.PointBody, jb.Dumbbell, ...); got {type(body).__name__}")
+        if not isinstance(table, Table):
+            raise TypeError(f"table must be a jaxbill table (jb.Circle, jb.Stadium, ...); got {type(table).__name__}")
+        for piece, name in zip(table.pieces, table.piece_names):
+            if not body.supports(piece):
+                raise ValueError(
+                    f"body: a {type(body).__name__} cannot touch {name} ({type(piece).__name__}): "
+                    "it touches flat walls only (jb.Strip, jb.Polygon)"
+                )
+        self.body, self.table = body, table
+        if all(is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(self)):
+            self._check_fit()
+
+    # -- parameters ---------------------------------------------------------------------
+
+    def _check_fit(self) -> None:
+        """ValueError for a body that fits in the table in no position."""
+        if np.any(np.asarray(self.body.diameter) >= np.asarray(self.table.diameter)):
+            raise ValueError(
+                f"body: its length {float(np.max(self.body.diameter)):.6g} is not below the longest chord of "
+                f"{self.table.name}, {float(np.min(self.table.diameter)):.6g}: it fits nowhere"
+            )
+        if np.any(np.asarray(self.body.width) >= np.asarray(self.table.width)):
+            raise ValueError(
+                f"body: its smallest width {float(np.max(self.body.width)):.6g} is not below the width of "
+                f"{self.table.name}, {float(np.min(self.table.width)):.6g}: it fits nowhere"
+            )
+
+    def check(self) -> None:
+        """Raise ValueError if the (possibly replaced) parameters are invalid or the body cannot fit."""
+        self.body.check()
+        self.table.check()
+        self._check_fit()
+
+    @property
+    def kind(self) -> str:
+        """The body's kind: ``"point"``, ``"static"`` (never turns) or ``"rotor"`` (static)."""
+        return self.body.kind
+
+    @property
+    def mass(self) -> jax.Array:
+        return self.body.mass
+
+    @property
+    def inertia(self) -> jax.Array:
+        return self.body.inertia
+
+    @property
+    def gap_names(self) -> tuple[str, ...]:
+        """One name per gap, wall by wall: ``"corner 2 on the stadium"``."""
+        return tuple(
+            _contact_name(contact, wall) for wall in self.table.piece_names for contact in self.body.contact_names
+        )
+
+    @property
+    def wall_name(self) -> str:
+        return self.table.name
+
+    @property
+    def gap_codes(self) -> tuple[int, ...]:
+        """The contact code of each gap (``Orbit.contact``), wall by wall: ``3 + g``."""
+        return tuple(FIRST_GAP_CODE + g for g in range(len(self.table.pieces) * self.body.contact_count))
+
+    @property
+    def contact_codes(self) -> tuple[int, ...]:
+        """Every contact code a collision can have: none, several at once, and one per gap."""
+        several = (SEVERAL_CONTACTS,) if len(self.gap_codes) > 1 else ()
+        return (NO_CONTACT, *several, *self.gap_codes)
+
+    @property
+    def batch_chunk(self) -> int:
+        return _BATCH_CHUNK[self.kind] if not self.searches_for_roots or self.kind == "rotor" else 1
+
+    @property
+    def gap_scale(self) -> jax.Array:
+        return self.table.gap_scale
+
+    @property
+    def conserves_angular_momentum(self) -> bool:
+        """Static: the table's wall pushes towards the origin, so ``angular_momentum`` is conserved."""
+        return self.table.conserves_angular_momentum
+
+    @property
+    def length_scale(self) -> jax.Array:
+        """A length of the table's size (its radius, ``sqrt(ab)``, the strip's height)."""
+        return self.table.size
+
+    # -- validation -----------------------------------------------------------------------
+
+    def check_state_values(self, state: np.ndarray) -> None:
+        shapes = {np.shape(leaf) for leaf in jax.tree_util.tree_leaves(self)}
+        batch = max((s[0] for s in shapes if s), default=None)
+        if batch is not None and state.ndim == 2 and batch != state.shape[0]:
+            raise ValueError(f"a batch of {batch} scenes needs a batch of {batch} states; got {state.shape[0]}")
+        if self.kind == "static" and np.any(state[..., 5] != 0):
+            raise ValueError(
+                "omega must be 0 for a body that never turns (inertia = inf): an infinitely heavy body cannot spin"
+            )
+
+    def is_valid(self, state: jax.Array) -> jax.Array:
+        ok = self.body.parameters_are_valid() & self.table.parameters_are_valid()
+        ok &= jnp.all(jnp.isfinite(state)) & self.motion_is_representable(state)
+        gaps = self.gaps(state)
+        ok &= jnp.all(gaps >= -WALL_TOLERANCE * self.gap_scale)
+        # A contact on the wall that does not move inwards is refused eagerly; a
+        # tangential one would stall the map (zero-length flights), so poison.
+        ok &= ~on_wall_not_inwards(gaps, self.approach_speeds(state))
+        if self.kind == "static":
+            ok &= state[5] == 0.0
+        return ok
+
+    def motion_is_representable(self, state) -> jax.Array:
+        """Traceable: ``|v|^2``, ``omega^2`` and the energy are ordinary float64 numbers."""
+        return motion_is_representable(state[..., 3:5], state[..., 5] ** 2, self.energy(state), self.table.size)
+
+    # -- the engine's questions (jaxbill._engine.step); states are components ---------------
+
+    def orbit_constants(self, state0: tuple):
+        """A body that never turns keeps its contacts' offsets for a whole orbit."""
+        if self.kind != "static":
+            return None
+        return self.body.offsets(*cos_sin(state0[2]))
+
+    @property
+    def searches_for_roots(self) -> bool:
+        """Static: a turning body's gaps are transcendental; a straight flight's are closed forms where every
+        wall gives one."""
+        if self.kind == "rotor":
+            return True
+        return not all(self.body.has_closed_form(piece) for piece in self.table.pieces)
+
+    def _offsets(self, alpha, constants=None):
+        """The body's contact offsets at ``alpha`` (``None`` for a point; the orbit's constants if it never turns)."""
+        if self.kind == "point":
+            return None
+        if self.kind == "static" and constants is not None:
+            return constants
+        return self.body.offsets(*cos_sin(alpha))
+
+    def _motion(self, state: tuple) -> Motion:
+        x, y, _, vx, vy, omega = state
+        if self.kind != "rotor":
+            omega = jnp.zeros_like(omega)  # its contacts move on straight lines
+        body = self.body
+        return Motion(x, y, vx, vy, omega, body.radius + jnp.zeros_like(x), body.inner_radius2 + jnp.zeros_like(x))
+
+    @property
+    def _sharp(self) -> bool:
+        """Static: every wall bounds the gaps' third derivative, so the search takes its sharper steps."""
+        return self.kind == "rotor" and all(self.body.bounds_jerk(piece) for piece in self.table.pieces)
+
+    def root_search(self, state: tuple):
+        """``(profile, RootBounds)`` of the flight from ``state`` (the profile is the state itself)."""
+        motion = self._motion(state)
+        lower, upper, jerk = [], [], []
+        quiet_in, quiet_out = jnp.zeros_like(state[0]), jnp.full_like(state[0], jnp.inf)
+        for piece in self.table.pieces:
+            low, high, third = self.body.flight_bounds(piece, motion)
+            lower.append(low)
+            upper.append(high)
+            jerk.append(third)
+            t_in, t_out = self.body.quiet_interval(piece, motion)
+            quiet_in, quiet_out = jnp.maximum(quiet_in, t_in), jnp.minimum(quiet_out, t_out)
+        # The quiet times of the table are those quiet for every wall: the intersection.
+        empty = quiet_in >= quiet_out
+        quiet_in, quiet_out = jnp.where(empty, jnp.inf, quiet_in), jnp.where(empty, jnp.inf, quiet_out)
+        speed = jnp.sqrt(motion.vx * motion.vx + motion.vy * motion.vy)
+        time_scale = 1.0 / (speed / self.table.size + jnp.abs(motion.omega))
+        sharp = self._sharp
+        profile = (state, lower, upper) if self._checked else state
+        return profile, RootBounds(
+            functools.reduce(jnp.maximum, lower),
+            functools.reduce(jnp.maximum, upper),
+            quiet_in,
+            quiet_out,
+            time_scale,
+            functools.reduce(jnp.maximum, jerk) if sharp else None,
+        )
+
+    @property
+    def _checked(self) -> bool:
+        """Static: some wall's bounds were estimated, so each root step checks the gaps' curvature against them."""
+        return any(piece.checks_curvature for piece in self.table.pieces)
+
+    def gaps_along_flight(self, profile, t: jax.Array):
+        """Every gap and its first (and, for the sharper steps, second) time derivative after a flight of ``t``.
+
+        Where a wall's bounds were estimated (``Piece.checks_curvature``), a gap
+        whose curvature breaks them is NaN: the search stops and the orbit is
+        poisoned rather than continued past a root it may have stepped over.
+        """
+        if not self._checked:
+            return self._gaps_along_flight(profile, t, self._sharp)
+        state, lower, upper = profile
+        gaps, slopes, curvatures = self._gaps_along_flight(state, t, True)
+        lower_curv, upper_curv = functools.reduce(jnp.maximum, lower), functools.reduce(jnp.maximum, upper)
+        slack = 1e-9 * (lower_curv + upper_curv)
+        inside = tuple((k >= -lower_curv - slack) & (k <= upper_curv + slack) for k in curvatures)
+        gaps = tuple(jnp.where(ok, g, jnp.nan) for g, ok in zip(gaps, inside))
+        return (gaps, slopes, curvatures) if self._sharp else (gaps, slopes)
+
+    def _gaps_along_flight(self, state: tuple, t: jax.Array, sharp: bool):
+        x, y, alpha, vx, vy, omega = state
+        if self.kind != "rotor":
+            omega = jnp.zeros_like(omega)
+        cx, cy = x + vx * t, y + vy * t
+        offsets = self._offsets(alpha + omega * t)
+        columns: list[list] = [[], [], []]
+        for piece in self.table.pieces:
+            for contact in self.body.gaps_along(piece, cx, cy, vx, vy, omega, offsets, sharp):
+                for column, value in zip(columns, contact):
+                    column.append(value)
+        return tuple(tuple(column) for column in columns[: 3 if sharp else 2])
+
+    def closed_form_contact(self, state: tuple, constants):
+        """``(t, index)`` for a body whose contacts move on straight lines."""
+        x, y, alpha, vx, vy, _ = state
+        offsets = self._offsets(alpha, constants)
+        times = tuple(t for piece in self.table.pieces for t in self.body.exit_times(piece, x, y, vx, vy, offsets))
+        return functools.reduce(jnp.minimum, times), first_smallest(times)
+
+    def flight_components(self, state: tuple, t) -> tuple:
+        """The free flight of the components for time ``t``; ``alpha`` wrapped into ``[-pi, pi)``.
+
+        Wrapping keeps ``cos``/``sin`` of ``alpha`` exact to rounding however
+        long the run: an unwrapped angle of ``1e7`` radians would carry ``1e-9``
+        absolute error into every contact. A body that never turns keeps ``alpha``.
+        """
+        x, y, alpha, vx, vy, omega = state
+        if self.kind != "static":
+            alpha = wrapped_angle(alpha + omega * t)
+        return x + vx * t, y + vy * t, alpha, vx, vy, omega
+
+    def contacts(self, state: tuple, offsets) -> tuple:
+        """Per gap, at a contact: ``(gap, closing, lever, normal)``: its gap, a number with the sign of its
+        approach speed, its lever ``N . r_alpha`` and its wall's outward normal ``N`` (components)."""
+        x, y, _, vx, vy, omega = state
+        gaps, closings, levers, normals = [], [], [], []
+        for piece in self.table.pieces:
+            for px, py, rx, ry in self.body.contact_points(piece, x, y, offsets):
+                tx, ty = self.body.turn_vector(rx, ry)
+                gx, gy = piece.gradient(px, py)
+                nx, ny = piece.impulse_normal(px, py)
+                gaps.append(piece.gap(px, py))
+                closings.append(-(gx * (vx + omega * tx) + gy * (vy + omega * ty)))
+                levers.append(nx * tx + ny * ty)
+                normals.append((nx, ny))
+        return tuple(gaps), tuple(closings), tuple(levers), tuple(normals)
+
+    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants):
+        """The flight to ``t`` and the impulse(s) of gap ``index``: ``(state, contact)``."""
+        moved = self.flight_components(state, t)
+        offsets = self._offsets(moved[2], constants)
+        return self.resolve(moved, index, offsets)
+
+    def resolve(self, state: tuple, index, offsets):
+        """The impulse(s) at a contact in gap ``index`` of ``state`` (components) on the wall: ``(state, contact)``."""
+        # A lambda, not a bound method: a conditional hashes its function, a scene is not hashable.
+        gaps, closings, levers, normals = computed_once(lambda s, o: self.contacts(s, o), state, offsets)
+        mass_ratio = self.body.mass_ratio
+        normal_x, normal_y = tuple(n[0] for n in normals), tuple(n[1] for n in normals)
+
+        def kick(s, k):
+            return impulse.reflect(s, select(levers, k), (select(normal_x, k), select(normal_y, k)), mass_ratio)
+
+        def speed_of(s, k):
+            return impulse.approach_speed(s, select(levers, k), (select(normal_x, k), select(normal_y, k)))
+
+        def contact_speeds(s):
+            speeds = tuple(impulse.approach_speed(s, lever, normal) for lever, normal in zip(levers, normals))
+            return gaps, closings, speeds
+
+        return impulse.contact_resolution(contact_speeds, kick, speed_of, state, index, self.gap_scale, self.gap_codes)
+
+    # -- states as arrays (the analyses, validation) --------------------------------------
+
+    def flight(self, state: jax.Array, t: jax.Array) -> jax.Array:
+        """Free flight of states ``(..., 6)`` for time ``t``; ``alpha`` wrapped into ``[-pi, pi)``."""
+        return stacked(self.flight_components(components(jnp.asarray(state)), t))
+
+    def _contact_table(self, state: jax.Array):
+        parts = components(jnp.asarray(state))
+        offsets = self._offsets(parts[2])
+        return parts, self.contacts(parts, offsets)
+
+    def gaps(self, state: jax.Array) -> jax.Array:
+        """Every contact gap ``(..., G)``, wall by wall; ``>= 0`` inside."""
+        _, (gaps, *_) = self._contact_table(state)
+        return jnp.stack(gaps, axis=-1)
+
+    def approach_speeds(self, state: jax.Array) -> jax.Array:
+        """The normal speed of each contact towards its wall ``(..., G)``; ``> 0`` approaching."""
+        parts, (_, _, levers, normals) = self._contact_table(state)
+        return jnp.stack([impulse.approach_speed(parts, s, n) for s, n in zip(levers, normals)], axis=-1)
+
+    def contact_points(self, state: jax.Array) -> jax.Array:
+        """The contact points ``(..., G, 2)``: for each gap, the point of the body that would touch that wall."""
+        parts = components(jnp.asarray(state))
+        offsets = self._offsets(parts[2])
+        points = [
+            jnp.stack([px, py], axis=-1)
+            for piece in self.table.pieces
+            for px, py, _, _ in self.body.contact_points(piece, parts[0], parts[1], offsets)
+        ]
+        return jnp.stack(points, axis=-2)
+
+    def contact_offsets_at(self, alpha) -> list:
+        """Per wall, the list of the contacts' offsets ``(rx, ry)`` from the centre at orientation ``alpha``."""
+        alpha = jnp.asarray(alpha, jnp.float64)
+        offsets = self._offsets(alpha)
+        zero = jnp.zeros_like(alpha)
+        return [
+            [(rx, ry) for _, _, rx, ry in self.body.contact_points(piece, zero, zero, offsets)]
+            for piece in self.table.pieces
+        ]
+
+    def end_points(self, state: jax.Array) -> jax.Array:
+        """The body's contact points ``(..., K, 2)`` on the first wall (a point body: its centre)."""
+        return self.contact_points(state)[..., : self.body.contact_count, :]
+
+    # -- invariants -----------------------------------------------------------------------
+
+    def energy(self, state) -> jax.Array:
+        """``M |v|^2 / 2 + I omega^2 / 2`` of states ``(..., 6)`` (or components)."""
+        return self.body.energy(*(component(state, i) for i in (3, 4, 5)))
+
+    def angular_momentum(self, state: ArrayLike) -> jax.Array:
+        """``M (x vy - y vx) + I omega`` about the origin, ``(...)``: conserved in a circle (the wall's force
+        is radial); a body that never turns gives the orbital part only."""
+        state = jnp.asarray(state)
+        x, y, vx, vy, omega = (state[..., i] for i in (0, 1, 3, 4, 5))
+        orbital = self.body.mass * (x * vy - y * vx)
+        if self.kind == "static":
+            return orbital
+        return orbital + self.body.spin_term(omega, self.body.inertia * omega)
+
+    # -- sections (jaxbill._scenes.body_sections) ----------------------------------------------
+
+    @property
+    def sections(self) -> tuple[str, ...]:
+        """The sections of a body in this table: ``("birkhoff",)`` in a bounded table, ``("floor",)`` between two
+        flat walls."""
+        return self.table.section_names
+
+    @property
+    def area_preserving_section(self) -> str:
+        """The section whose coordinates the collision map preserves area in (for a point, or a body at fixed
+        invariants between walls); for a body in a bounded table the Birkhoff section is a projection."""
+        return self.table.section_names[0]
+
+    def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
+        """Section points ``(..., 2)`` of states ``(..., 6)`` at collisions (``HasSection``): ``"birkhoff"``,
+        ``[s, p]`` the contact's arc length round the table and the centre's tangential momentum
+        ``sqrt(M) v_t / sqrt(2E)``; ``"floor"``, ``[alpha, p]`` at collisions with the floor of a strip (see
+        ``jaxbill._scenes.body_sections``). ``contacts`` (``Orbit.contact``) name the touching contact;
+        without them, the contact nearest its wall."""
+        return body_sections.SECTIONS[chosen_section(self, name)](self, states, contacts)
+
+    def section_state(self, point: ArrayLike, energy=0.5, arm_angle=0.0, spin=0.0) -> jax.Array:
+        """The state ``(..., 6)`` just after a collision at the area-preserving section's ``point`` ``(..., 2)``
+        at energy ``E``: for the Birkhoff section, the first contact on the wall at ``s`` with the body at
+        ``arm_angle`` (radians, from the outward normal to that contact's offset) and spin ``omega``; for the
+        floor section, ``(alpha, p)`` at ``x = 0``, ``vx = 0``. NaN where none exists."""
+        xy = jnp.asarray(point, dtype=jnp.float64)
+        if self.area_preserving_section == "floor":
+            return body_sections.floor_state(self, xy[..., 0], xy[..., 1], energy)
+        return body_sections.birkhoff_state(self, xy[..., 0], xy[..., 1], energy, arm_angle, spin)
+
+    @property
+    def section_chart(self) -> SectionChart:
+        """How ``jb.explore`` seeds, reads and draws the area-preserving section."""
+        return body_sections.CHARTS[self.area_preserving_section]
+
+    def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):
+        """``count`` tries at Liouville-distributed states of energy ``E`` (and ``L``, for a turning body in a
+        circle) (``SamplesStates``): ``(states (k, 6), weights (k,))``, every gap above ``margin`` times its unit
+        (``jb.sample_energy_shell`` loops over it)."""
+        return table_shell_candidates(self, rng, count, energy, angular_momentum, margin)
+
+    # -- derivatives (jaxbill._engine.tangent) ----------------------------------------------
+
+    @property
+    def dynamical_indices(self) -> tuple[int, ...]:
+        """All six coordinates for a turning body; ``(x, y, vx, vy)`` for a point (a free spin) and for a body
+        that never turns (``alpha`` a constant, ``omega = 0``)."""
+        return (0, 1, 2, 3, 4, 5) if self.kind == "rotor" else (0, 1, 3, 4)
+
+    def phase_velocity(self, state: jax.Array) -> jax.Array:
+        """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
+        state = jnp.asarray(state)
+        return jnp.concatenate([state[..., 3:6], jnp.zeros_like(state[..., 0:3])], axis=-1)

@@ -1,0 +1,1 @@
+"""The tables: convex regions built from smooth pieces."""
