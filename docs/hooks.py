@@ -1,4 +1,4 @@
-"""MkDocs hooks: the API reference, generated from ``jaxbill.__all__``, and the checks behind ``--strict``.
+"""MkDocs hooks: the API reference from ``jaxbill.__all__``, the checks behind ``--strict``, the notebooks' maths.
 
 Every public name (``jaxbill.__all__`` and the ``jaxbill.plotting`` module)
 gets a ``::: name`` block, rendered by mkdocstrings from its docstring, on one
@@ -6,16 +6,30 @@ of the pages of ``API_PAGES``; a name no page lists lands on "More" instead
 of being left out. A public class or function without a docstring of its
 own, or a constant without an entry in ``CONSTANTS``, is logged as a warning,
 which ``mkdocs build --strict`` turns into a failed build.
+
+Maths is typeset in the browser by the KaTeX bundled under ``docs/assets/``
+(``docs/assets/render-maths.js``), from formulas marked ``\\( ... \\)`` or
+``\\[ ... \\]`` inside an element of class ``arithmatex``: what
+``pymdownx.arithmatex`` writes for the Markdown pages and the docstrings. The
+notebooks' Markdown cells go through nbconvert instead, which would leave their
+``$...$`` as typed; ``on_config`` makes it write the same marks, and
+``on_page_content`` rebuilds each notebook's table of contents from its
+rendered headings, so that the entries carry the headings' formulas and link
+to the headings' own anchors (the table mkdocs-jupyter derives separately slugs
+a heading with inline code differently from the heading itself).
 """
 
 from __future__ import annotations
 
+import html
 import inspect
 import logging
 import pathlib
+import re
 import sys
 
 from mkdocs.structure.files import File
+from mkdocs.structure.toc import get_toc
 
 log = logging.getLogger("mkdocs.hooks.jaxbill")
 # Document the jaxbill beside this folder, whatever else is installed.
@@ -166,3 +180,94 @@ def on_files(files, config):
     for path, content in api_pages().items():
         files.append(File.generated(config, path, content=content))
     return files
+
+
+# --------------------------------------------------------------------------- maths in the notebooks
+
+
+def _mark_notebook_maths() -> None:
+    """Have nbconvert write a notebook's formulas as ``pymdownx.arithmatex`` writes a page's.
+
+    nbconvert's Markdown parser already tells formulas from text (``$...$``,
+    ``$$...$$``, ``\\begin{env}``); only what its renderer writes for them changes.
+    """
+    from nbconvert.filters.markdown_mistune import IPythonRenderer
+
+    def inline_math(self, body: str) -> str:
+        return f'<span class="arithmatex">\\({self.escape_html(body)}\\)</span>'
+
+    def block_math(self, body: str) -> str:
+        return f'<span class="arithmatex">\\[{self.escape_html(body)}\\]</span>'
+
+    def latex_environment(self, name: str, body: str) -> str:
+        name, body = self.escape_html(name), self.escape_html(body)
+        return f'<span class="arithmatex">\\[\\begin{{{name}}}{body}\\end{{{name}}}\\]</span>'
+
+    IPythonRenderer.inline_math = inline_math
+    IPythonRenderer.block_math = block_math
+    IPythonRenderer.latex_environment = latex_environment
+
+
+def on_config(config):
+    _mark_notebook_maths()
+    return config
+
+
+# nbconvert's template loads MathJax from an address the site does not set (an empty
+# script); KaTeX typesets the notebooks as it does every other page.
+_MATHJAX_LOADER = re.compile(r"<!-- Load mathjax -->.*?<!-- End of mathjax configuration -->", re.S)
+_HEADING = re.compile(r"<h([1-6])((?:\s[^>]*)?)>(.*?)</h\1>", re.S)
+_ANCHOR_LINK = re.compile(r'<a class="anchor-link"[^>]*>.*?</a>', re.S)
+_LINK_TAG = re.compile(r"</?a\b[^>]*>")
+_ID = re.compile(r'\sid="([^"]*)"')
+
+
+def _slug(text: str, taken: set[str]) -> str:
+    base = re.sub(r"[^\w]+", "-", html.unescape(re.sub(r"<[^>]+>", "", text)).lower()).strip("-") or "section"
+    slug, n = base, 1
+    while slug in taken:
+        n += 1
+        slug = f"{base}-{n}"
+    return slug
+
+
+def notebook_headings(content: str) -> tuple[str, list[dict]]:
+    """``(content, toc_tokens)``: every heading given an id (if it had none) and the table of contents they make.
+
+    A token is ``{"level", "id", "name", "children"}`` (the shape Python-Markdown's
+    ``toc_tokens`` have); its name is the heading's HTML without its anchor link, its
+    formulas kept.
+    """
+    taken = set(_ID.findall(content))
+    flat = []
+
+    def heading(match: re.Match) -> str:
+        level, attributes, inner = int(match[1]), match[2], match[3]
+        found = _ID.search(attributes)
+        if found:
+            anchor = found[1]
+        else:
+            anchor = _slug(_ANCHOR_LINK.sub("", inner), taken)
+            taken.add(anchor)
+            attributes = f' id="{anchor}"{attributes}'
+        name = _LINK_TAG.sub("", _ANCHOR_LINK.sub("", inner)).strip()
+        flat.append({"level": level, "id": anchor, "name": name, "children": []})
+        return f"<h{level}{attributes}>{inner}</h{level}>"
+
+    content = _HEADING.sub(heading, content)
+    tokens: list[dict] = []
+    stack: list[dict] = []
+    for token in flat:
+        while stack and stack[-1]["level"] >= token["level"]:
+            stack.pop()
+        (stack[-1]["children"] if stack else tokens).append(token)
+        stack.append(token)
+    return content, tokens
+
+
+def on_page_content(content, page, config, files):
+    if not page.file.src_uri.endswith(".ipynb"):
+        return content
+    content, tokens = notebook_headings(_MATHJAX_LOADER.sub("", content))
+    page.toc = get_toc(tokens)
+    return content
