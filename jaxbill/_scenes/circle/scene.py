@@ -38,6 +38,7 @@ from jaxbill._engine.validation import (
 from jaxbill._scenes import two_ended_stick as stick
 from jaxbill._scenes.circle.sections import (
     CIRCLE_CHART,
+    SECTION_AXIS_LABELS,
     birkhoff_section,
     paper_section,
     reduced_section,
@@ -413,6 +414,7 @@ class StickInCircle(eqx.Module):
     # -- what the analyses ask (jaxbill._scenes.protocols's capability protocols) ---------------------
 
     sections: ClassVar[tuple[str, ...]] = ("reduced", "paper", "birkhoff")
+    section_axis_labels: ClassVar[dict[str, tuple[str, str]]] = SECTION_AXIS_LABELS
     area_preserving_section: ClassVar[str] = "reduced"
     periodic_symmetry: ClassVar[str] = "rotation"  # turning the whole picture about the centre
     symplectic_flow: ClassVar[bool] = True  # HasSymplecticFlow: elastic and Hamiltonian

@@ -68,7 +68,13 @@ from jaxbill._engine.validation import (
     require_x64,
 )
 from jaxbill._scenes import two_ended_stick as stick
-from jaxbill._scenes.ellipse.sections import ELLIPSE_CHART, SECTIONS, ellipse_section, ellipse_section_state
+from jaxbill._scenes.ellipse.sections import (
+    ELLIPSE_CHART,
+    SECTION_AXIS_LABELS,
+    SECTIONS,
+    ellipse_section,
+    ellipse_section_state,
+)
 from jaxbill._scenes.protocols import WALL_TOLERANCE, SectionChart, chosen_section, component
 from jaxbill._scenes.smooth_table import EllipseTable
 
@@ -159,7 +165,16 @@ class StickInEllipse(eqx.Module):
     gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
     wall_name: ClassVar[str] = "the ellipse"
 
-    def __init__(self, a, b, ell, mass=1.0, inertia=None, *, kind: str | None = None):
+    def __init__(
+        self,
+        a: ArrayLike,
+        b: ArrayLike,
+        ell: ArrayLike,
+        mass: ArrayLike = 1.0,
+        inertia: ArrayLike | None = None,
+        *,
+        kind: str | None = None,
+    ):
         require_x64()
         leaves = [a, b, ell, mass] + ([] if inertia is None else [inertia])
         if all(is_concrete(v) for v in leaves):
@@ -490,6 +505,7 @@ class StickInEllipse(eqx.Module):
     # -- what the analyses ask (jaxbill._scenes.protocols's capability protocols) ---------------------
 
     sections: ClassVar[tuple[str, ...]] = SECTIONS
+    section_axis_labels: ClassVar[dict[str, tuple[str, str]]] = SECTION_AXIS_LABELS
     # Area-preserving for the point (ell = 0); for a stick a projection (jaxbill._scenes.ellipse.sections).
     area_preserving_section: ClassVar[str] = "birkhoff"
     # No continuous symmetry: a periodic orbit closes in every coordinate.
