@@ -96,6 +96,7 @@ def test_a_public_name_without_a_docstring_is_a_warning(caplog, monkeypatch):
         pages = hooks.api_pages()
     assert any("jaxbill.undocumented has no docstring" in r.getMessage() for r in caplog.records)
     assert "::: jaxbill.undocumented" in pages[hooks.MORE_PAGE]
+    assert any("public names on no API page" in r.getMessage() for r in caplog.records)
 
 
 @pytest.fixture(scope="module")
@@ -217,3 +218,56 @@ def test_every_table_of_contents_entry_links_to_a_heading_on_its_page(site):
         links = re.findall(r'<a href="#([^"]+)" class="md-nav__link"', text)
         broken = [link for link in links if link not in anchors]
         assert not broken, f"{page.relative_to(site)}: {broken}"
+
+
+SCENE_CLASSES = ("StickInCircle", "StickInEllipse", "StickBetweenWalls2D", "StickBetweenWalls3D")
+
+
+def test_engine_members_named_in_the_hooks_exist():
+    """``ENGINE_MEMBERS`` names no member that no scene has (a stale name would hide nothing)."""
+    hooks = _load_hooks()
+    scenes = [getattr(jb, name) for name in SCENE_CLASSES]
+    stale = [m for m in hooks.ENGINE_MEMBERS if not any(hasattr(cls, m) for cls in scenes)]
+    assert not stale, stale
+
+
+def test_the_scenes_page_shows_the_user_s_members_and_the_scene_page_the_engine_s(site):
+    """What a user calls is on the scenes page, typed; what the engine calls only on the page for adding a scene."""
+    from jaxbill._scenes.protocols import Scene
+
+    hooks = _load_hooks()
+    scenes = (site / "api" / "scenes" / "index.html").read_text()
+    new_scene = (site / "how-to" / "new-scene" / "index.html").read_text()
+    shown = set(re.findall(r'id="jaxbill\.(?:' + "|".join(SCENE_CLASSES) + r')\.(\w+)"', scenes))
+    assert not shown & set(hooks.ENGINE_MEMBERS), shown & set(hooks.ENGINE_MEMBERS)
+    assert {"energy", "end_points", "gaps", "flight", "section", "section_state", "focal_momentum_product"} <= shown
+    protocol = [
+        name
+        for name, value in vars(Scene).items()
+        if not name.startswith("_") and (callable(value) or isinstance(value, property))
+    ]
+    assert "root_search" in protocol and "energy" in protocol
+    for name in protocol:
+        on_scene_page = f'id="jaxbill._scenes.protocols.Scene.{name}"' in new_scene
+        assert on_scene_page, f"Scene.{name} is not documented on the page for adding a scene"
+        assert (name in hooks.ENGINE_MEMBERS) != (name in shown), f"{name}: on both pages or on neither"
+    # every parameter of every scene has a type in its table
+    rows = re.findall(
+        r'<tr class="doc-section-item">\s*<td>\s*<code>([^<]*)</code>\s*</td>\s*<td>(.*?)</td>', scenes, re.S
+    )
+    assert len(rows) >= 17
+    untyped = [name for name, cell in rows if not cell.strip()]
+    assert not untyped, untyped
+
+
+def test_the_api_reference_has_no_page_of_leftovers(site):
+    assert not (site / "api" / "more" / "index.html").exists()
+    runs = (site / "api" / "runs" / "index.html").read_text()
+    assert 'id="jaxbill.backend_settings"' in runs
+    studies = (site / "api" / "studies" / "index.html").read_text()
+    assert 'id="jaxbill.studies.small_stick.study_scene"' in studies
+    assert 'id="jaxbill.studies.arnold_web.web_starts"' in studies
+    # documented once: the top-level names the studies share are on the derivatives page only
+    assert 'id="jaxbill.studies.small_stick.ensemble_lyapunov"' not in studies
+    plotting = (site / "api" / "plotting" / "index.html").read_text()
+    assert 'id="jaxbill.plotting.draw_ellipse_orbit"' in plotting

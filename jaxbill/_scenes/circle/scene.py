@@ -117,7 +117,15 @@ class StickInCircle(eqx.Module):
     gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
     wall_name: ClassVar[str] = "the circle"
 
-    def __init__(self, R, ell, mass=1.0, inertia=None, *, kind: str | None = None):
+    def __init__(
+        self,
+        R: ArrayLike,
+        ell: ArrayLike,
+        mass: ArrayLike = 1.0,
+        inertia: ArrayLike | None = None,
+        *,
+        kind: str | None = None,
+    ):
         require_x64()  # float32 leaves would void every accuracy claim
         leaves = [R, ell, mass] + ([] if inertia is None else [inertia])
         if all(is_concrete(v) for v in leaves):
