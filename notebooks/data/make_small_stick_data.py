@@ -1,4 +1,4 @@
-"""Measure the small-stick law and write ``notebooks/data/small_stick_law.npz`` (issue 20, item 2).
+"""Measure the small-stick law and write ``notebooks/data/small_stick_law.npz``.
 
 The largest Lyapunov exponent of a short stick, per unit time and per
 collision, in the circle (R = 2) and the ellipse (a = 2, b = 1.4), at fixed
