@@ -93,7 +93,7 @@ def _make_gap(R, ell, k):
 
 
 def impulse(q, k, R, ell, M, inertia):
-    """Frictionless elastic impulse at end k (physics.md)."""
+    """Frictionless elastic impulse at end k."""
     x, y, a, vx, vy, om = q
     ux, uy = math.cos(a), math.sin(a)
     px, py = x + k * ell * ux, y + k * ell * uy

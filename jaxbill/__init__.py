@@ -18,7 +18,6 @@ from jaxbill._engine.backend import backend_settings, configure
 configure()
 jax.config.update("jax_enable_x64", True)
 
-from jaxbill._analysis.arnold_web import TorusFrequencies, resonances, torus_frequencies  # noqa: E402
 from jaxbill._analysis.chaos import (  # noqa: E402
     FiniteTimeLyapunov,
     chaos_threshold,
@@ -36,13 +35,14 @@ from jaxbill._analysis.periodic import (  # noqa: E402
     find_periodic_orbits,
 )
 from jaxbill._analysis.section_measures import (  # noqa: E402
+    CHAOTIC_DIVERGENCE,
     count_islands,
     covered_fraction,
     curve_thickness,
     is_chaotic,
+    orbits_with_twins,
     twin_divergence,
 )
-from jaxbill._analysis.small_stick import EnsembleLyapunov, ensemble_lyapunov  # noqa: E402
 from jaxbill._check.checker import CheckFlag, CheckReport, CheckResult, check  # noqa: E402
 from jaxbill._engine.collision import (  # noqa: E402
     Orbit,
@@ -74,6 +74,7 @@ from jaxbill._scenes.circle.sections import (  # noqa: E402
     wall_length,
 )
 from jaxbill._scenes.ellipse.scene import StickInEllipse  # noqa: E402
+from jaxbill._scenes.ellipse.sections import ellipse_length  # noqa: E402
 from jaxbill._scenes.protocols import angular_momentum, end_points, energy  # noqa: E402
 from jaxbill._scenes.tables.base import Motion, Piece, Table  # noqa: E402
 from jaxbill._scenes.tables.circle import Circle, DiscWall  # noqa: E402
@@ -89,10 +90,14 @@ from jaxbill._scenes.walls.sections import (  # noqa: E402
     floor_section_bound,
     floor_seeds,
     floor_state,
+    orbits_with_twin_distances,
     reduced_wall_section,
+    separation_collisions,
     theta_z_path,
     wall_twin_divergence,
 )
+from jaxbill.studies.arnold_web import TorusFrequencies, resonances, torus_frequencies  # noqa: E402
+from jaxbill.studies.small_stick import EnsembleLyapunov, ensemble_lyapunov  # noqa: E402
 
 __all__ = [
     "BodyInTable",
@@ -142,6 +147,7 @@ __all__ = [
     "section_seeds",
     "incoming_states",
     "wall_length",
+    "ellipse_length",
     "floor_section",
     "floor_section_bound",
     "floor_seeds",
@@ -149,11 +155,15 @@ __all__ = [
     "reduced_wall_section",
     "theta_z_path",
     "wall_twin_divergence",
+    "orbits_with_twin_distances",
+    "separation_collisions",
     "curve_thickness",
     "covered_fraction",
     "count_islands",
     "twin_divergence",
     "is_chaotic",
+    "orbits_with_twins",
+    "CHAOTIC_DIVERGENCE",
     "tangent_map",
     "dynamical_indices",
     "dynamical_frame",

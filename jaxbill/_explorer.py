@@ -46,7 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbill._engine.collision import Orbit, orbit
-from jaxbill._scenes.protocols import SectionChart
+from jaxbill._scenes.protocols import HasSection, SectionChart
 
 # A user's scene class may be registered here; jaxbill's scenes carry their own
 # ``section_chart`` (``jaxbill._scenes.protocols.HasSection``).
@@ -569,14 +569,14 @@ def sample_clicks(explorer: Explorer, count: int = 4) -> list[tuple[float, float
 
 
 def explore(
-    scene,
+    scene: HasSection,
     *,
     survey_orbits: int = 24,
     survey_collisions: int = 1000,
     click_collisions: int = 4000,
     chunk: int = 500,
-    save_path="jaxbill_explorer.png",
-    **invariants,
+    save_path: str = "jaxbill_explorer.png",
+    **invariants: float,
 ) -> Explorer:
     """Open an interactive explorer of ``scene``'s area-preserving Poincaré section.
 

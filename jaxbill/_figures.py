@@ -614,7 +614,7 @@ def _studies_figures(out_dir: str, quick: bool, bar) -> list:
     missing (an install without the repository's notebooks) the figure is
     skipped and the summary says so.
     """
-    from jaxbill._analysis import arnold_web, small_stick
+    from jaxbill.studies import arnold_web, small_stick
 
     records = []
     for name, data_file, draw in (

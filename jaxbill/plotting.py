@@ -1,4 +1,4 @@
-"""Pictures of the stick in a circle, with matplotlib.
+"""Pictures of the scenes, with matplotlib.
 
 Every ``draw_*`` function draws on a given ``Axes`` (a 3D one for
 ``draw_spiral_column``) and returns it; every ``*_figure`` function returns a
@@ -8,33 +8,65 @@ any backend and needs no display; save it with ``fig.savefig``).
 Lengths are in the units of the scene's ``R``; ``M`` is the stick's mass; time
 is in the units of the states' velocities.
 
-* ``draw_trajectory``: the configuration-space picture (the paper's Fig. 1):
-  the circle, the path of the stick's centre, the stick at its contacts and
-  the paper's rotating lens-shaped wall at one chosen contact.
+* ``draw_trajectory``: the configuration-space picture of the stick in a
+  circle (the paper's Fig. 1): the circle, the path of the stick's centre, the
+  stick at its contacts and the paper's rotating lens-shaped wall at one
+  chosen contact.
+* ``draw_ellipse_orbit``: the same for the stick in an ellipse, without the lens.
 * ``draw_section``: section points of many orbits, coloured by orbit, with
-  axes labelled for the chosen section (``"paper"``, ``"reduced"`` or
-  ``"birkhoff"``; see ``jaxbill._scenes.circle.sections``).
+  axes labelled for the chosen section (the stick in a circle's ``"paper"``,
+  ``"reduced"`` or ``"birkhoff"``, or any section of the ``scene`` passed).
 * ``draw_reduced_bounds``: the edge of the reachable region of the reduced
   section at given ``E`` and ``L``, and the lens corners.
 * ``draw_spiral_column``: the spiral-column picture in 3D, the column surface
   ``r <= b(theta - alpha)`` swept along ``z = sqrt(I/M) alpha`` and the
   trajectory inside it.
+* ``draw_walls_2d``, ``draw_wall_billiard``, ``draw_wall_flights``,
+  ``draw_floor_section``, ``draw_floor_section_bounds``: the sticks between
+  walls.
 * ``plot_fli_map``: a map of fast Lyapunov indicators over a grid of starts
   (``jaxbill.fli_map``), with the axes labels the caller gives.
 """
 
 from __future__ import annotations
 
+import jax
 import numpy as np
+from jaxtyping import ArrayLike
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from mpl_toolkits.mplot3d import Axes3D
 
-from jaxbill._scenes.circle.sections import half_corner_angle, reduced_section_bounds, wall_length
+from jaxbill._engine.collision import Orbit
+from jaxbill._scenes.circle.scene import StickInCircle
+from jaxbill._scenes.circle.sections import (
+    SECTION_AXIS_LABELS,
+    half_corner_angle,
+    reduced_section_bounds,
+    wall_length,
+)
+from jaxbill._scenes.ellipse.sections import draw_ellipse_orbit
+from jaxbill._scenes.protocols import HasSection
 
-_SECTION_LABELS = {
-    "paper": (r"$\phi_c = \arctan(p_y/p_x)$  (units of $\pi$)", r"$L_z = y\,p_x - x\,p_y$  (mass length$^2$/time)"),
-    "reduced": (r"$s$: arc length along the rotating lens wall (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
-    "birkhoff": (r"$s$: arc length along the wall (length)", r"$\sin\chi = v_t/|v|$"),
-}
+__all__ = [
+    "orbit_colors",
+    "lens_outline",
+    "draw_trajectory",
+    "draw_ellipse_orbit",
+    "draw_section",
+    "draw_reduced_bounds",
+    "unwrapped_angles",
+    "draw_spiral_column",
+    "trajectory_figure",
+    "section_figure",
+    "spiral_column_figure",
+    "draw_walls_2d",
+    "draw_wall_billiard",
+    "draw_wall_flights",
+    "draw_floor_section",
+    "draw_floor_section_bounds",
+    "plot_fli_map",
+]
 
 
 def _np(x):
@@ -51,7 +83,7 @@ def orbit_colors(count: int, cmap: str = "turbo"):
     return [colormap(0.05 + 0.9 * i / (count - 1)) for i in range(count)]
 
 
-def lens_outline(scene, alpha: float, points: int = 400) -> np.ndarray:
+def lens_outline(scene: StickInCircle, alpha: float, points: int = 400) -> np.ndarray:
     """The lens-shaped wall ``r = b(theta - alpha)`` that the centre sees at stick angle ``alpha``.
 
     ``b(q) = -ell |cos q| + sqrt(R^2 - ell^2 sin^2 q)``: the intersection of the
@@ -65,10 +97,10 @@ def lens_outline(scene, alpha: float, points: int = 400) -> np.ndarray:
 
 
 def draw_trajectory(
-    ax,
-    scene,
-    state0,
-    orbit,
+    ax: Axes,
+    scene: StickInCircle,
+    state0: ArrayLike,
+    orbit: Orbit,
     *,
     collisions: int | None = None,
     wall_at: int | None = 0,
@@ -149,12 +181,13 @@ def _orbits_and_colors(points, colors):
 
 
 def draw_section(
-    ax,
-    points,
+    ax: Axes,
+    points: ArrayLike,
     kind: str = "paper",
     *,
+    scene: HasSection | None = None,
     colors=None,
-    markersize: float = 0.6,
+    markersize: float = 2.0,
     labels=None,
     title: str | None = None,
     rasterized: bool = True,
@@ -166,15 +199,24 @@ def draw_section(
         points: ``(n, 2)`` for one orbit or ``(B, n, 2)`` for ``B`` orbits, as
             returned by ``paper_section`` (``[L_z, phi_c]``, drawn with
             ``phi_c`` across and ``L_z`` up, the paper's axes),
-            ``reduced_section`` or ``birkhoff_section`` (``[s, p]``, drawn
-            with ``s`` across). Non-finite points are skipped.
-        kind: ``"paper"``, ``"reduced"`` or ``"birkhoff"``: chooses the axes
-            and their labels.
+            ``reduced_section``, ``birkhoff_section`` or a scene's
+            ``section`` (``[s, p]``, drawn with ``s`` across). Non-finite
+            points are skipped.
+        kind: the section the points are in, which labels the axes: one of
+            ``scene.sections``, or without ``scene`` one of the stick in a
+            circle's, ``"paper"``, ``"reduced"`` or ``"birkhoff"``.
+        scene: the scene the points come from: its ``section_axis_labels``
+            label the axes (default: the stick in a circle's labels).
         colors: one colour per orbit (default ``orbit_colors(B)``), or one colour.
+        markersize: the points' diameter in points (2: visible one by one at
+            a screen's resolution; smaller for a dense cloud of many orbits).
         labels: optional legend label per orbit.
     """
-    if kind not in _SECTION_LABELS:
-        raise ValueError(f"kind must be one of {tuple(_SECTION_LABELS)}; got {kind!r}")
+    axis_labels = SECTION_AXIS_LABELS if scene is None else getattr(scene, "section_axis_labels", None)
+    if axis_labels is None:
+        raise ValueError(f"scene {type(scene).__name__} gives no section_axis_labels to label a section with")
+    if kind not in axis_labels:
+        raise ValueError(f"kind must be one of {tuple(axis_labels)}; got {kind!r}")
     pts, colors = _orbits_and_colors(points, colors)
     for i, orbit_points in enumerate(pts):
         if kind == "paper":
@@ -193,7 +235,7 @@ def draw_section(
             rasterized=rasterized,
             label=None if labels is None else labels[i],
         )
-    xlabel, ylabel = _SECTION_LABELS[kind]
+    xlabel, ylabel = axis_labels[kind]
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if kind == "paper":
@@ -205,7 +247,9 @@ def draw_section(
     return ax
 
 
-def draw_reduced_bounds(ax, scene, energy: float = 0.5, angular_momentum: float = 0.0, *, color="k"):
+def draw_reduced_bounds(
+    ax: Axes, scene: StickInCircle, energy: float = 0.5, angular_momentum: float = 0.0, *, color="k"
+):
     """Outline of the reduced section at ``(E, L)``: the edge ``p_min(s), p_max(s)`` and the corners.
 
     Sets the ``s`` limits to one turn of the wall. For the lens and the circle
@@ -223,7 +267,7 @@ def draw_reduced_bounds(ax, scene, energy: float = 0.5, angular_momentum: float 
     return ax
 
 
-def unwrapped_angles(state0, orbit) -> np.ndarray:
+def unwrapped_angles(state0: ArrayLike, orbit: Orbit) -> np.ndarray:
     """The stick angle at each collision, without the wrap into ``[-pi, pi)``: ``(n,)``.
 
     ``alpha_j = alpha_0 + sum_{i <= j} omega_{i-1} (t_i - t_{i-1})`` (the spin is
@@ -238,10 +282,10 @@ def unwrapped_angles(state0, orbit) -> np.ndarray:
 
 
 def draw_spiral_column(
-    ax3d,
-    scene,
-    state0,
-    orbit,
+    ax3d: Axes3D,
+    scene: StickInCircle,
+    state0: ArrayLike,
+    orbit: Orbit,
     *,
     collisions: int | None = None,
     surface_alpha: float = 0.12,
@@ -288,7 +332,8 @@ def draw_spiral_column(
     for side in (0.5 * np.pi, -0.5 * np.pi):
         ax3d.plot(crease * np.cos(a_fine + side), crease * np.sin(a_fine + side), pitch * a_fine, color="k", lw=0.8)
     ax3d.plot(path[:, 0], path[:, 1], z, color=path_color, lw=1.0)
-    ax3d.scatter(path[1:, 0], path[1:, 1], z[1:], color=path_color, s=4)
+    # matplotlib types zs as a scalar; an array of heights is what it draws with
+    ax3d.scatter(path[1:, 0], path[1:, 1], z[1:], color=path_color, s=4)  # pyright: ignore[reportArgumentType]
     ax3d.set_xlabel("x (length)")
     ax3d.set_ylabel("y (length)")
     ax3d.set_zlabel(r"$z = \sqrt{I/M}\,\alpha$ (length)")
@@ -301,24 +346,32 @@ def draw_spiral_column(
 # -- whole figures -----------------------------------------------------------
 
 
-def trajectory_figure(scene, state0, orbit, **kwargs) -> Figure:
+def trajectory_figure(scene: StickInCircle, state0: ArrayLike, orbit: Orbit, **kwargs) -> Figure:
     """A ``Figure`` with ``draw_trajectory`` (the paper's Fig. 1)."""
     fig = Figure(figsize=(6, 6.6), layout="constrained")
     draw_trajectory(fig.add_subplot(), scene, state0, orbit, **kwargs)
     return fig
 
 
-def section_figure(points, kind: str = "paper", *, scene=None, energy=0.5, angular_momentum=0.0, **kwargs) -> Figure:
-    """A ``Figure`` with ``draw_section``; with ``scene`` and a reduced/Birkhoff kind, its bounds too."""
+def section_figure(
+    points: ArrayLike,
+    kind: str = "paper",
+    *,
+    scene: StickInCircle | None = None,
+    energy: float = 0.5,
+    angular_momentum: float = 0.0,
+    **kwargs,
+) -> Figure:
+    """A ``Figure`` with ``draw_section``; with a stick in a circle and its reduced/Birkhoff kind, its bounds too."""
     fig = Figure(figsize=(7, 5.5), layout="constrained")
     ax = fig.add_subplot()
-    draw_section(ax, points, kind, **kwargs)
+    draw_section(ax, points, kind, scene=scene, **kwargs)
     if scene is not None and kind != "paper":
         draw_reduced_bounds(ax, scene, energy, angular_momentum)
     return fig
 
 
-def spiral_column_figure(scene, state0, orbit, **kwargs) -> Figure:
+def spiral_column_figure(scene: StickInCircle, state0: ArrayLike, orbit: Orbit, **kwargs) -> Figure:
     """A ``Figure`` with ``draw_spiral_column``."""
     fig = Figure(figsize=(7, 7), layout="constrained")
     draw_spiral_column(fig.add_subplot(projection="3d"), scene, state0, orbit, **kwargs)
@@ -344,10 +397,10 @@ _FLOOR_P_LABEL = r"$p = (I\dot\theta + M v_z\, dz/d\theta)/\sqrt{2 I E'}$"
 
 
 def draw_walls_2d(
-    ax,
+    ax: Axes,
     scene,
-    state0,
-    orbit,
+    state0: ArrayLike,
+    orbit: Orbit,
     *,
     collisions: int | None = None,
     stick_every: int = 1,
@@ -397,7 +450,14 @@ def draw_walls_2d(
     return ax
 
 
-def draw_wall_billiard(ax, scene, theta_range=(0.0, np.pi), *, color="k", shade: bool = True):
+def draw_wall_billiard(
+    ax: Axes,
+    scene,
+    theta_range=(0.0, np.pi),
+    *,
+    color="k",
+    shade: bool = True,
+):
     """The paper's billiard: floor ``kappa b(theta) = ell|cos theta|`` and ceiling ``h - ell|cos theta|``.
 
     Drawn in lengths against ``kappa theta`` (aspect equal, so reflections look
@@ -426,10 +486,10 @@ def draw_wall_billiard(ax, scene, theta_range=(0.0, np.pi), *, color="k", shade:
 
 
 def draw_wall_flights(
-    ax,
+    ax: Axes,
     scene,
-    state0,
-    orbit,
+    state0: ArrayLike,
+    orbit: Orbit,
     *,
     collisions: int | None = None,
     points_per_flight: int = 60,
@@ -449,7 +509,7 @@ def draw_wall_flights(
 
     states = _np(orbit.state)
     n = len(states) if collisions is None else min(collisions, len(states))
-    short = type(orbit)(t=_np(orbit.t)[:n], contact=np.asarray(orbit.contact)[:n], state=states[:n])
+    short = jax.tree_util.tree_map(lambda a: np.asarray(a)[:n], orbit)
     paths = flight_paths(scene, state0, short, points_per_flight)
     kappa = float(np.sqrt(float(scene.inertia) / float(scene.mass)))
     flat = paths.reshape(-1, 2)
@@ -472,8 +532,8 @@ def draw_wall_flights(
 
 
 def draw_floor_section(
-    ax,
-    points,
+    ax: Axes,
+    points: ArrayLike,
     kind: str = "2d",
     *,
     colors=None,
@@ -514,7 +574,7 @@ def draw_floor_section(
     return ax
 
 
-def draw_floor_section_bounds(ax, scene, energy: float = 0.5, spin: float = 0.0, *, color="k"):
+def draw_floor_section_bounds(ax: Axes, scene, energy: float = 0.5, spin: float = 0.0, *, color="k"):
     """Edge ``p = +-floor_section_bound(theta)`` of the floor section at ``E'`` (and ``I w_z = spin``), and the kink."""
     from jaxbill._scenes.walls.sections import floor_section_bound
 
@@ -528,9 +588,9 @@ def draw_floor_section_bounds(ax, scene, energy: float = 0.5, spin: float = 0.0,
 
 
 def plot_fli_map(
-    ax,
-    values,
-    extent,
+    ax: Axes,
+    values: ArrayLike,
+    extent: tuple[float, float, float, float],
     *,
     xlabel: str,
     ylabel: str,
@@ -564,9 +624,9 @@ def plot_fli_map(
     image = _np(values)
     if image.ndim != 2:
         raise ValueError(f"values must be a 2D map (ny, nx); got shape {image.shape}")
-    extent = tuple(float(e) for e in extent)
     if len(extent) != 4:
         raise ValueError(f"extent must be (x_min, x_max, y_min, y_max); got {extent}")
+    extent = (float(extent[0]), float(extent[1]), float(extent[2]), float(extent[3]))
     shown = ax.imshow(
         np.ma.masked_invalid(image),
         origin="lower",

@@ -1,4 +1,4 @@
-"""The Arnold-web analysis (``jaxbill._analysis.arnold_web``): starts, frequencies, resonances, ridges, spreads.
+"""The Arnold-web analysis (``jaxbill.studies.arnold_web``): starts, frequencies, resonances, ridges, spreads.
 
 Every expected value here comes from a closed form, a hand count or a second
 route through other code (the autodiff Jacobian of the collision map), never
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._analysis import arnold_web as aw
+from jaxbill.studies import arnold_web as aw
 
 R, ELL, E = 2.0, 1.9, 0.5
 

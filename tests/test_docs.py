@@ -2,19 +2,23 @@
 
 The site is built with ``mkdocs build --strict`` (the ``docs`` extra: mkdocs-material,
 mkdocstrings, mkdocs-jupyter); a broken link, an unresolved cross-reference or a public
-name without a docstring fails it. Without the ``docs`` extra the build test skips; the
-code blocks of the getting-started page run either way.
+name without a docstring fails it. The built pages are then read as a reader sees them:
+every formula typeset by the bundled KaTeX (no raw ``$...$``), every table-of-contents
+entry landing on its heading. Without the ``docs`` extra those tests skip; the code
+blocks of the getting-started page run either way.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import logging
 import os
 import pathlib
 import re
 import subprocess
 import sys
+from html.parser import HTMLParser
 
 import matplotlib
 
@@ -33,6 +37,7 @@ def _code_blocks(path: pathlib.Path, language: str) -> list[str]:
 
 
 def _load_hooks():
+    pytest.importorskip("mkdocs", reason="docs/hooks.py needs the docs extra: pip install -e '.[docs]'")
     spec = importlib.util.spec_from_file_location("jaxbill_docs_hooks", DOCS / "hooks.py")
     hooks = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(hooks)
@@ -91,11 +96,14 @@ def test_a_public_name_without_a_docstring_is_a_warning(caplog, monkeypatch):
         pages = hooks.api_pages()
     assert any("jaxbill.undocumented has no docstring" in r.getMessage() for r in caplog.records)
     assert "::: jaxbill.undocumented" in pages[hooks.MORE_PAGE]
+    assert any("public names on no API page" in r.getMessage() for r in caplog.records)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None, reason="needs the docs extra: pip install -e '.[docs]'")
-def test_docs_build_strict(tmp_path):
-    site = tmp_path / "site"
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> pathlib.Path:
+    """The site, built once with ``mkdocs build --strict`` (a failed build fails every test that reads it)."""
+    pytest.importorskip("mkdocs", reason="the site needs the docs extra: pip install -e '.[docs]'")
+    site = tmp_path_factory.mktemp("docs") / "site"
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1", JAX_PLATFORMS="cpu")
     proc = subprocess.run(
         [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
@@ -106,6 +114,14 @@ def test_docs_build_strict(tmp_path):
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr[-4000:]
+    return site
+
+
+def _pages(site: pathlib.Path) -> list[pathlib.Path]:
+    return sorted(p for p in site.rglob("*.html") if p.name != "404.html")
+
+
+def test_docs_build_strict(site):
     scenes = (site / "api" / "scenes" / "index.html").read_text()
     assert 'id="jaxbill.StickInCircle"' in scenes
     assert 'id="jaxbill.explore"' in (site / "api" / "explorer" / "index.html").read_text()
@@ -113,3 +129,145 @@ def test_docs_build_strict(tmp_path):
         page = (site / "notebooks" / notebook.stem / "index.html").read_text()
         assert "data:image/png" in page, f"{notebook.name} is rendered without its stored figures"
     assert (site / "images" / "explorer.png").exists()
+
+
+class _ReadText(HTMLParser):
+    """The text a reader sees as prose: outside code, scripts, styles and the formulas marked for KaTeX.
+
+    (Also outside a notebook cell's hidden copy of its code, kept for the copy button.)
+    """
+
+    VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
+    SKIPPED = {"pre", "code", "kbd", "samp", "script", "style", "textarea", "svg"}
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.open: list[tuple[str, bool]] = []  # (tag, skipped), innermost last
+        self.text: list[str] = []
+
+    def handle_starttag(self, tag, attrs):
+        if tag in self.VOID:
+            return
+        classes = (dict(attrs).get("class") or "").split()
+        self.open.append((tag, tag in self.SKIPPED or bool({"arithmatex", "clipboard-copy-txt"} & set(classes))))
+
+    def handle_endtag(self, tag):
+        for depth in range(len(self.open) - 1, -1, -1):  # tolerate an unclosed element inside
+            if self.open[depth][0] == tag:
+                del self.open[depth:]
+                return
+
+    def handle_data(self, data):
+        if not any(skipped for _, skipped in self.open):
+            self.text.append(data)
+
+
+def _prose(page: pathlib.Path) -> str:
+    reader = _ReadText()
+    reader.feed(page.read_text())
+    return "".join(reader.text)
+
+
+# a formula left as typed: $...$ or $$...$$ (what nbconvert and Markdown leave), or TeX
+# delimiters outside an element the maths script typesets
+RAW_MATHS = re.compile(r"\$\$|\$(?=\S)[^$\n]{1,300}?(?<=\S)\$|\\\(.*?\\\)|\\\[.*?\\\]", re.S)
+
+
+def test_every_formula_on_the_site_is_typeset(site):
+    """No page, notebook pages, headings and tables of contents included, shows a formula as raw TeX."""
+    raw = {}
+    for page in _pages(site):
+        found = RAW_MATHS.findall(_prose(page))
+        if found:
+            raw[str(page.relative_to(site))] = found[:3]
+    assert not raw, f"raw maths on {len(raw)} pages: {raw}"
+
+
+def test_the_raw_maths_check_sees_what_nbconvert_and_markdown_leave(tmp_path):
+    """The check above is not vacuous: it finds untypeset formulas where a reader would see them."""
+    page = tmp_path / "page.html"
+    page.write_text(
+        '<nav><a href="#x">No web at $\\varepsilon = 0$</a></nav><p>$$\\omega\' = \\omega$$ and <code>$HOME</code></p>'
+        '<p><span class="arithmatex">\\(\\ell\\)</span> costs \\(a\\) and <script>var a = "$x$";</script></p>'
+    )
+    assert RAW_MATHS.findall(_prose(page)) == ["$\\varepsilon = 0$", "$$", "$$", "\\(a\\)"]
+
+
+def test_notebook_formulas_are_marked_for_katex_which_the_site_carries(site):
+    """Every notebook with maths in its Markdown gets it marked on its page; KaTeX and its fonts are local files."""
+    for notebook in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        cells = json.loads(notebook.read_text())["cells"]
+        if any("$" in "".join(c["source"]) for c in cells if c["cell_type"] == "markdown"):
+            page = (site / "notebooks" / notebook.stem / "index.html").read_text()
+            assert page.count('class="arithmatex"') >= 5, notebook.name
+    katex = site / "assets" / "katex"
+    stylesheet = (katex / "katex.min.css").read_text()
+    fonts = re.findall(r"url\((fonts/[^)]+\.woff2)\)", stylesheet)
+    assert len(fonts) >= 20 and all((katex / font).is_file() for font in fonts)
+    for page in _pages(site):
+        text = page.read_text()
+        assert "assets/katex/katex.min.js" in text and "assets/render-maths.js" in text, page
+        assert not re.search(r'<script[^>]+src="(https?:)?//', text), f"{page} loads a script from the network"
+        assert "mathjax" not in text.lower(), f"{page} still loads MathJax"
+
+
+def test_every_table_of_contents_entry_links_to_a_heading_on_its_page(site):
+    for page in _pages(site):
+        text = page.read_text()
+        anchors = set(re.findall(r'\sid="([^"]+)"', text))
+        links = re.findall(r'<a href="#([^"]+)" class="md-nav__link"', text)
+        broken = [link for link in links if link not in anchors]
+        assert not broken, f"{page.relative_to(site)}: {broken}"
+
+
+SCENE_CLASSES = ("StickInCircle", "StickInEllipse", "StickBetweenWalls2D", "StickBetweenWalls3D")
+
+
+def test_engine_members_named_in_the_hooks_exist():
+    """``ENGINE_MEMBERS`` names no member that no scene has (a stale name would hide nothing)."""
+    hooks = _load_hooks()
+    scenes = [getattr(jb, name) for name in SCENE_CLASSES]
+    stale = [m for m in hooks.ENGINE_MEMBERS if not any(hasattr(cls, m) for cls in scenes)]
+    assert not stale, stale
+
+
+def test_the_scenes_page_shows_the_user_s_members_and_the_scene_page_the_engine_s(site):
+    """What a user calls is on the scenes page, typed; what the engine calls only on the page for adding a scene."""
+    from jaxbill._scenes.protocols import Scene
+
+    hooks = _load_hooks()
+    scenes = (site / "api" / "scenes" / "index.html").read_text()
+    new_scene = (site / "how-to" / "new-scene" / "index.html").read_text()
+    shown = set(re.findall(r'id="jaxbill\.(?:' + "|".join(SCENE_CLASSES) + r')\.(\w+)"', scenes))
+    assert not shown & set(hooks.ENGINE_MEMBERS), shown & set(hooks.ENGINE_MEMBERS)
+    assert {"energy", "end_points", "gaps", "flight", "section", "section_state", "focal_momentum_product"} <= shown
+    protocol = [
+        name
+        for name, value in vars(Scene).items()
+        if not name.startswith("_") and (callable(value) or isinstance(value, property))
+    ]
+    assert "root_search" in protocol and "energy" in protocol
+    for name in protocol:
+        on_scene_page = f'id="jaxbill._scenes.protocols.Scene.{name}"' in new_scene
+        assert on_scene_page, f"Scene.{name} is not documented on the page for adding a scene"
+        assert (name in hooks.ENGINE_MEMBERS) != (name in shown), f"{name}: on both pages or on neither"
+    # every parameter of every scene has a type in its table
+    rows = re.findall(
+        r'<tr class="doc-section-item">\s*<td>\s*<code>([^<]*)</code>\s*</td>\s*<td>(.*?)</td>', scenes, re.S
+    )
+    assert len(rows) >= 17
+    untyped = [name for name, cell in rows if not cell.strip()]
+    assert not untyped, untyped
+
+
+def test_the_api_reference_has_no_page_of_leftovers(site):
+    assert not (site / "api" / "more" / "index.html").exists()
+    runs = (site / "api" / "runs" / "index.html").read_text()
+    assert 'id="jaxbill.backend_settings"' in runs
+    studies = (site / "api" / "studies" / "index.html").read_text()
+    assert 'id="jaxbill.studies.small_stick.study_scene"' in studies
+    assert 'id="jaxbill.studies.arnold_web.web_starts"' in studies
+    # documented once: the top-level names the studies share are on the derivatives page only
+    assert 'id="jaxbill.studies.small_stick.ensemble_lyapunov"' not in studies
+    plotting = (site / "api" / "plotting" / "index.html").read_text()
+    assert 'id="jaxbill.plotting.draw_ellipse_orbit"' in plotting

@@ -16,8 +16,9 @@ jb = pytest.importorskip("jaxbill")
 
 PACKAGE = pathlib.Path(jb.__file__).parent
 FOLDERS = {"_engine", "_scenes", "_analysis", "_check", "_runs"}
-# The user-facing modules that stay at the top: the namespace, the pictures, the command.
-TOP_LEVEL = {"__init__", "plotting", "cli", "_figures", "_explorer"}
+# The user-facing modules that stay at the top: the namespace, the pictures, the command,
+# and the studies built on the library (a public package: each study imported by name).
+TOP_LEVEL = {"__init__", "plotting", "cli", "_figures", "_explorer", "studies"}
 
 
 def _module_name(path: pathlib.Path) -> str:

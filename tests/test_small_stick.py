@@ -1,4 +1,4 @@
-"""The small-stick law's tools (``jaxbill._analysis.small_stick``): the reduced kick map, the kick against
+"""The small-stick law's tools (``jaxbill.studies.small_stick``): the reduced kick map, the kick against
 the engine, and the common-window ensemble estimator on cases with known answers."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._analysis import small_stick as ss
+from jaxbill.studies import small_stick as ss
 
 
 @pytest.mark.parametrize("K", [1e-2, 1e-3])

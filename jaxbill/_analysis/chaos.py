@@ -126,7 +126,7 @@ def chaotic_fraction(
 
 
 def sample_energy_shell(
-    scene,
+    scene: Scene,
     size: int,
     *,
     energy: float = 0.5,

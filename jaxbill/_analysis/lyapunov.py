@@ -256,7 +256,7 @@ def lyapunov_spectrum(
         ``LyapunovSpectrum`` (with a leading batch axis for a batch of states):
         ``exponents`` ``(k,)``, ``history`` ``(H, k)``.
 
-    Expected spectra (``physics.md``): a spinning stick ``{lam, 0, 0, 0, 0,
+    Expected spectra, from the flow's symmetries and invariants: a spinning stick ``{lam, 0, 0, 0, 0,
     -lam}`` (zeros: time shift, energy, angular momentum, rotation angle); the
     static lens ``{lam, 0, 0, -lam}``; the circle all zero. Between walls:
     2D ``{lam, 0, 0, -lam}`` (time shift, energy); 3D ``{lam, 0, 0, 0, 0,

@@ -91,6 +91,7 @@ derivative is ``-J^+ dF/dscene``, never a derivative of the iterations.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import equinox as eqx
@@ -680,9 +681,9 @@ def find_periodic_orbit(
     guess: Float[ArrayLike, " S"],
     period: int,
     *,
-    energy=None,
-    angular_momentum=None,
-    rotation=None,
+    energy: float | None = None,
+    angular_momentum: float | None = None,
+    rotation: float | None = None,
     tol: float = 1e-11,
     max_steps: int = 100,
     parabolic_tol: float = 1e-8,
@@ -776,9 +777,9 @@ def find_periodic_orbits(
     guesses: Float[ArrayLike, "B S"],
     period: int,
     *,
-    energy=None,
-    angular_momentum=None,
-    rotation=None,
+    energy: float | None = None,
+    angular_momentum: float | None = None,
+    rotation: float | None = None,
     tol: float = 1e-11,
     max_steps: int = 100,
     parabolic_tol: float = 1e-8,
@@ -830,9 +831,9 @@ def continue_periodic_orbit(
     scene: StickInCircle,
     orbit: PeriodicOrbit,
     parameter: str,
-    values,
+    values: Sequence[float] | np.ndarray,
     *,
-    rotation=None,
+    rotation: float | None = None,
     tol: float = 1e-11,
     max_steps: int = 100,
     parabolic_tol: float = 1e-8,

@@ -1,6 +1,6 @@
 """Measures on section points: is an orbit a curve or an area, how much area, how many islands.
 
-Plain NumPy on finished results (section points from ``jaxbill._scenes.circle.sections``),
+Plain NumPy on finished results (section points: ``jb.reduced_section``, ``jb.birkhoff_section``),
 for checking claims about pictures with numbers:
 
 * ``curve_thickness``: the local thickness of a point cloud. Around each point
@@ -17,7 +17,7 @@ for checking claims about pictures with numbers:
 * ``count_islands``: the number of separate pieces a set of points forms on a
   grid (cells touching, diagonals included, are one piece): an orbit in a
   chain of ``k`` resonance islands draws ``k`` pieces.
-* ``twin_divergence`` / ``is_chaotic``: the dynamical test. Each orbit is
+* ``twin_divergence`` / ``is_chaotic`` / ``orbits_with_twins``: the dynamical test. Each orbit is
   run beside a twin whose velocity is turned by ``1e-11`` rad; on a torus the
   two drift apart linearly (to ``~1e-7`` after thousands of collisions), in a
   chaotic region exponentially, to order one. This is the classification the
@@ -27,13 +27,16 @@ for checking claims about pictures with numbers:
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 from jaxtyping import ArrayLike, Bool, Float
 
+from jaxbill._engine.collision import Orbit
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._scenes.circle.sections import reduced_section_bounds, wall_length
+from jaxbill._scenes.protocols import Scene
 
-CHAOTIC_DIVERGENCE = 1e-3
+CHAOTIC_DIVERGENCE = 1e-3  # twin_divergence above this: chaotic (a torus stays near delta * n)
 
 
 def _finite_points(points) -> np.ndarray:
@@ -73,7 +76,10 @@ def local_thickness(points, neighbours: int = 12, scale=None, samples: int | Non
 
 
 def curve_thickness(
-    points: Float[ArrayLike, "*m 2"], neighbours: int = 12, scale=None, samples: int | None = 500
+    points: Float[ArrayLike, "*m 2"],
+    neighbours: int = 12,
+    scale: Float[ArrayLike, " 2"] | None = None,
+    samples: int | None = 500,
 ) -> float:
     """Median local thickness (see ``local_thickness``): small for a curve, ``O(1)`` for an area.
 
@@ -108,7 +114,11 @@ def occupancy(points, s_edges, p_edges) -> np.ndarray:
 
 
 def covered_fraction(
-    scene, points: Float[ArrayLike, "*m 2"], energy=0.5, angular_momentum=0.0, bins=(120, 80)
+    scene: Scene,
+    points: Float[ArrayLike, "*m 2"],
+    energy: float = 0.5,
+    angular_momentum: float = 0.0,
+    bins: tuple[int, int] = (120, 80),
 ) -> float:
     """Fraction of the wholly reachable cells of the ``(s, p)`` section that ``points`` visit.
 
@@ -120,7 +130,11 @@ def covered_fraction(
     return float(np.sum(hit & reachable) / np.sum(reachable))
 
 
-def count_islands(points: Float[ArrayLike, "*m 2"], bins=(200, 200), extent=None) -> int:
+def count_islands(
+    points: Float[ArrayLike, "*m 2"],
+    bins: tuple[int, int] = (200, 200),
+    extent: tuple[tuple[float, float], tuple[float, float]] | None = None,
+) -> int:
     """Number of separate pieces the points form on a ``bins`` grid (8-connected cells).
 
     Args:
@@ -189,7 +203,35 @@ def divergence(scene, states, twin_states_, states0) -> np.ndarray:
     return np.nan_to_num(np.max(tail, axis=1), nan=np.inf)
 
 
-def twin_divergence(scene, states0: Float[ArrayLike, "B S"], n: int, delta: float = 1e-11) -> Float[np.ndarray, " B"]:
+def orbits_with_twins(
+    scene: Scene, states0: Float[ArrayLike, "B S"], n: int, delta: float = 1e-11
+) -> tuple[Orbit, Float[np.ndarray, " B"]]:
+    """Run orbits beside their slightly disturbed twins, in one batch: ``(the orbits, twin_divergence)``.
+
+    What ``twin_divergence`` measures, with the orbits themselves kept (their
+    section points, say) instead of run a second time.
+
+    Args:
+        scene: a planar stick ``[x, y, alpha, vx, vy, omega]`` in a table
+            (``StickInCircle``, ``StickInEllipse``).
+        states0: ``(B, 6)`` start states.
+        n: number of collisions.
+        delta: the angle (radians) by which each twin's velocity is turned.
+
+    Returns:
+        The ``Orbit`` of the ``B`` starts (``state`` ``(B, n, 6)``) and, per
+        orbit, the twin divergence ``(B,)`` (see ``twin_divergence``).
+    """
+    states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
+    both = jax.device_get(_orbit(scene, np.concatenate([states0, twin_states(states0, delta)]), n))
+    count = len(states0)
+    orbits = jax.tree_util.tree_map(lambda a: a[:count], both)
+    return orbits, divergence(scene, both.state[:count], both.state[count:], states0)
+
+
+def twin_divergence(
+    scene: Scene, states0: Float[ArrayLike, "B S"], n: int, delta: float = 1e-11
+) -> Float[np.ndarray, " B"]:
     """How far each orbit and its slightly disturbed twin end up apart after ``n`` collisions.
 
     The twin starts from the same position with the velocity turned by
@@ -197,8 +239,8 @@ def twin_divergence(scene, states0: Float[ArrayLike, "B S"], n: int, delta: floa
     momentum changes by ``O(delta)``). Returns, per orbit, the largest distance
     ``|(x, y, vx, vy)_twin - (x, y, vx, vy)|`` over the last tenth of the
     collisions, in units of ``(R, |v_0|)``: ``~delta * n`` on a torus, ``O(1)``
-    for a chaotic orbit. (``twin_states`` and ``divergence`` do the same for
-    orbits already run.)
+    for a chaotic orbit; above ``CHAOTIC_DIVERGENCE`` counts as chaotic
+    (``is_chaotic``). ``orbits_with_twins`` returns the orbits too.
 
     Args:
         scene: a planar stick ``[x, y, alpha, vx, vy, omega]`` in a table
@@ -207,14 +249,13 @@ def twin_divergence(scene, states0: Float[ArrayLike, "B S"], n: int, delta: floa
         states0: ``(B, 6)`` start states.
         n: number of collisions (a few thousand tells chaos with Lyapunov
             exponents above ``~0.01`` per collision).
+        delta: the angle (radians) by which each twin's velocity is turned.
     """
-    states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
-    both = np.asarray(_orbit(scene, np.concatenate([states0, twin_states(states0, delta)]), n).state)
-    return divergence(scene, both[: len(states0)], both[len(states0) :], states0)
+    return orbits_with_twins(scene, states0, n, delta)[1]
 
 
 def is_chaotic(
-    scene, states0: Float[ArrayLike, "B S"], n: int, threshold: float = CHAOTIC_DIVERGENCE
+    scene: Scene, states0: Float[ArrayLike, "B S"], n: int, threshold: float = CHAOTIC_DIVERGENCE
 ) -> Bool[np.ndarray, " B"]:
     """``twin_divergence(scene, states0, n) > threshold`` (default ``1e-3``): ``(B,)`` booleans."""
     return twin_divergence(scene, states0, n) > threshold

@@ -60,6 +60,7 @@ from jaxtyping import ArrayLike, Float, Int, Real
 from jaxbill._engine.collision import collide as _collide
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
+from jaxbill._scenes.protocols import Scene
 
 __all__ = ["check", "CheckResult", "CheckReport", "CheckFlag", "ColumnFlight"]
 
@@ -415,7 +416,7 @@ def _first(mask):
 # the checker
 # ---------------------------------------------------------------------------
 def check(
-    scene,
+    scene: Scene,
     state0: Real[ArrayLike, " S"],
     n: int,
     *,

@@ -466,6 +466,11 @@ class BodyInTable(eqx.Module):
         return body_sections.birkhoff_state(self, xy[..., 0], xy[..., 1], energy, arm_angle, spin)
 
     @property
+    def section_axis_labels(self) -> dict[str, tuple[str, str]]:
+        """The axes of each section, for pictures: ``{name: (x label, y label)}``."""
+        return {name: body_sections.CHARTS[name].axis_labels for name in self.sections}
+
+    @property
     def section_chart(self) -> SectionChart:
         """How ``jb.explore`` seeds, reads and draws the area-preserving section."""
         return body_sections.CHARTS[self.area_preserving_section]

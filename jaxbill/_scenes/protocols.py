@@ -213,6 +213,8 @@ class HasSection(Protocol):
     is the one whose coordinates the collision map preserves area in (at the
     invariants it holds fixed): "fraction covered" and island counts mean
     something there only. ``section_chart`` is what ``jb.explore`` draws.
+    Optional: ``section_axis_labels``, ``{name: (x label, y label)}`` for each of
+    ``sections``, which ``plotting.draw_section(..., scene=scene)`` puts on its axes.
     """
 
     sections: ClassVar[tuple[str, ...]]

@@ -2,7 +2,7 @@
 
 Writes ``notebooks/data/arnold_web.npz`` (about 2 MB):
 
-1. circle frequencies ``nu1, nu2`` (``jaxbill._analysis.arnold_web.torus_frequencies``)
+1. circle frequencies ``nu1, nu2`` (``jaxbill.studies.arnold_web.torus_frequencies``)
    on a grid of ``(p on the line s = Lw/4) x L``;
 2. FLI maps of the ellipse ``a = R (1 + eps)``, ``b = R (1 - eps)`` on that grid for
    ``eps = 0, 1e-4, 1e-3, 1e-2``;
@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 import jaxbill as jb
-from jaxbill._analysis import arnold_web as aw
+from jaxbill.studies import arnold_web as aw
 
 R, ELL, ENERGY = 2.0, 1.9, 0.5
 MAP_EPS = (0.0, 1e-4, 1e-3, 1e-2)

@@ -1,10 +1,10 @@
-"""Measure the small-stick law and write ``notebooks/data/small_stick_law.npz`` (issue 20, item 2).
+"""Measure the small-stick law and write ``notebooks/data/small_stick_law.npz``.
 
 The largest Lyapunov exponent of a short stick, per unit time and per
 collision, in the circle (R = 2) and the ellipse (a = 2, b = 1.4), at fixed
 I = 1 and with the paper's I = M ell^2, for ell = 0.1 ... 1e-6: 512 Liouville
 starts on the shell E = 1/2 per point, a common time window, 8 sub-ensembles
-for the error bars (``jaxbill._analysis.small_stick.measure_small_stick_law``).
+for the error bars (``jaxbill.studies.small_stick.measure_small_stick_law``).
 Also stores the reduced map's predicted prefactors.
 
 Run (about 5-10 minutes on one core of a shared machine)::
@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from jaxbill._analysis import small_stick as ss
+from jaxbill.studies import small_stick as ss
 
 OUT = pathlib.Path(__file__).resolve().parent / "small_stick_law.npz"
 

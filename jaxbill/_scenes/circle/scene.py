@@ -36,6 +36,7 @@ from jaxbill._scenes.bodies.point import PointBody
 from jaxbill._scenes.body_in_table import BodyInTable
 from jaxbill._scenes.circle.sections import (
     CIRCLE_CHART,
+    SECTION_AXIS_LABELS,
     birkhoff_section,
     paper_section,
     reduced_section,
@@ -111,7 +112,15 @@ class StickInCircle(BodyInTable):
     gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
     wall_name: ClassVar[str] = "the circle"
 
-    def __init__(self, R, ell, mass=1.0, inertia=None, *, kind: str | None = None):
+    def __init__(
+        self,
+        R: ArrayLike,
+        ell: ArrayLike,
+        mass: ArrayLike = 1.0,
+        inertia: ArrayLike | None = None,
+        *,
+        kind: str | None = None,
+    ):
         require_x64()  # float32 leaves would void every accuracy claim
         leaves = [R, ell, mass] + ([] if inertia is None else [inertia])
         if all(is_concrete(v) for v in leaves):
@@ -213,6 +222,7 @@ class StickInCircle(BodyInTable):
     # -- what the analyses ask (jaxbill._scenes.protocols's capability protocols) ---------------------
 
     sections: ClassVar[tuple[str, ...]] = ("reduced", "paper", "birkhoff")
+    section_axis_labels: ClassVar[dict[str, tuple[str, str]]] = SECTION_AXIS_LABELS
     area_preserving_section: ClassVar[str] = "reduced"
     periodic_symmetry: ClassVar[str] = "rotation"  # turning the whole picture about the centre
 

@@ -448,9 +448,16 @@ def _draw_circle_configuration(ax, scene, state0, orb, color):
     ax.set_ylabel("y (length)")
 
 
+# The axes of each section, for pictures (StickInCircle.section_axis_labels).
+SECTION_AXIS_LABELS = {
+    "paper": (r"$\phi_c = \arctan(p_y/p_x)$  (units of $\pi$)", r"$L_z = y\,p_x - x\,p_y$  (mass length$^2$/time)"),
+    "reduced": (r"$s$: arc length along the rotating lens wall (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+    "birkhoff": (r"$s$: arc length along the wall (length)", r"$\sin\chi = v_t/|v|$"),
+}
+
 CIRCLE_CHART = SectionChart(
     title="reduced section",
-    axis_labels=(r"$s$: arc length along the rotating lens wall (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+    axis_labels=SECTION_AXIS_LABELS["reduced"],
     invariant_symbols={"energy": "E", "angular_momentum": "L"},
     default_invariants=lambda scene: {"energy": 0.5, "angular_momentum": 0.0},
     x_range=lambda scene: (0.0, float(wall_length(scene))),

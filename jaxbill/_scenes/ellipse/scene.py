@@ -67,7 +67,13 @@ from jaxbill._scenes import impulse
 from jaxbill._scenes.bodies.dumbbell import Dumbbell
 from jaxbill._scenes.bodies.point import PointBody
 from jaxbill._scenes.body_in_table import BodyInTable
-from jaxbill._scenes.ellipse.sections import ELLIPSE_CHART, SECTIONS, ellipse_section, ellipse_section_state
+from jaxbill._scenes.ellipse.sections import (
+    ELLIPSE_CHART,
+    SECTION_AXIS_LABELS,
+    SECTIONS,
+    ellipse_section,
+    ellipse_section_state,
+)
 from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, chosen_section
 from jaxbill._scenes.tables.ellipse import Ellipse
 
@@ -138,7 +144,16 @@ class StickInEllipse(BodyInTable):
     gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
     wall_name: ClassVar[str] = "the ellipse"
 
-    def __init__(self, a, b, ell, mass=1.0, inertia=None, *, kind: str | None = None):
+    def __init__(
+        self,
+        a: ArrayLike,
+        b: ArrayLike,
+        ell: ArrayLike,
+        mass: ArrayLike = 1.0,
+        inertia: ArrayLike | None = None,
+        *,
+        kind: str | None = None,
+    ):
         require_x64()
         leaves = [a, b, ell, mass] + ([] if inertia is None else [inertia])
         if all(is_concrete(v) for v in leaves):
@@ -280,6 +295,7 @@ class StickInEllipse(BodyInTable):
     # -- what the analyses ask (jaxbill._scenes.protocols's capability protocols) ---------------------
 
     sections: ClassVar[tuple[str, ...]] = SECTIONS
+    section_axis_labels: ClassVar[dict[str, tuple[str, str]]] = SECTION_AXIS_LABELS
     # Area-preserving for the point (ell = 0); for a stick a projection (jaxbill._scenes.ellipse.sections).
     area_preserving_section: ClassVar[str] = "birkhoff"
 

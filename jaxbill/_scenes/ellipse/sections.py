@@ -232,9 +232,15 @@ def draw_ellipse_orbit(ax, scene, state0, orb, color, *, stick_every: int = 1):
     ax.set_ylabel("y (length)")
 
 
+# The axes of each section, for pictures (StickInEllipse.section_axis_labels).
+SECTION_AXIS_LABELS = {
+    "birkhoff": (r"$s$: arc length of the contact from $(a, 0)$ (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+    "angle": (r"$t$: parameter angle of the contact, $(a \cos t, b \sin t)$ (rad)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+}
+
 ELLIPSE_CHART = SectionChart(
     title="Birkhoff section of the touching end",
-    axis_labels=(r"$s$: arc length of the contact from $(a, 0)$ (length)", r"$p = \sqrt{M}\,v_t/\sqrt{2E}$"),
+    axis_labels=SECTION_AXIS_LABELS["birkhoff"],
     invariant_symbols={"energy": "E"},
     default_invariants=lambda scene: {"energy": 0.5},
     x_range=lambda scene: (0.0, float(ellipse_length(scene))),

@@ -6,7 +6,7 @@ body frame (the stick: its two ends). Every table answers the same questions:
 * the **gap** of a point, ``g(P) >= 0`` inside, a positive multiple of ``-F``;
 * the **outward normal** ``N(P) = -grad g(P) / 2`` (not normalised), along
   which every impulse acts: the impulse is the one mass-metric reflection
-  about ``grad g`` at the contact, whatever the table (``physics.md``);
+  about ``grad g`` at the contact, whatever the table;
 * **bounds on the second derivative** of ``g`` along a free flight of the body,
   from bounds on the Hessian of ``g`` and on ``|grad g|`` over the region the
   contacts can reach (``jaxbill._engine.first_root`` needs them to step safely);

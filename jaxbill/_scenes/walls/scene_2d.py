@@ -79,7 +79,7 @@ class StickBetweenWalls2D(BodyInTable):
     gap_codes: ClassVar[tuple[int, ...]] = (walls.FLOOR, -walls.FLOOR, walls.CEILING, -walls.CEILING)
     contact_codes: ClassVar[tuple[int, ...]] = walls.CONTACT_CODES
 
-    def __init__(self, h, ell, mass=1.0, inertia=None):
+    def __init__(self, h: ArrayLike, ell: ArrayLike, mass: ArrayLike = 1.0, inertia: ArrayLike | None = None):
         require_x64()  # float32 leaves would void every accuracy claim
         h, ell, mass, inertia, kind = walls.scene_leaves(h, ell, mass, inertia)
         super().__init__(StickFromVertical(ell, mass, inertia, kind), Strip(h))

@@ -71,7 +71,7 @@ class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
     gap_names: ClassVar[tuple[str, ...]] = walls.GAP_NAMES
     wall_name: ClassVar[str] = "the walls"
 
-    def __init__(self, h, ell, mass=1.0, inertia=None):
+    def __init__(self, h: ArrayLike, ell: ArrayLike, mass: ArrayLike = 1.0, inertia: ArrayLike | None = None):
         require_x64()  # float32 leaves would void every accuracy claim
         self.h, self.ell, self.mass, self.inertia, self.kind = walls.scene_leaves(h, ell, mass, inertia)
 

@@ -540,7 +540,14 @@ def orbits_with_twins(scene, states0, n: int, delta: float = 1e-11):
 
 
 def orbits_with_twin_distances(scene, states0, n: int, delta: float = 1e-11):
-    """Run orbits and their twins in one batch: ``(orbit of the originals, wall_twin_distances)``."""
+    """Run sticks between walls beside their twins, in one batch: ``(orbits, distances)``.
+
+    Each twin's velocity ``(theta_dot, eta_dot)`` is turned by ``delta`` radians
+    (same energy, same horizontal motion). ``distances`` ``(B, n)``: orbit to twin
+    at every collision, in ``(z/h, stick direction, vz/(kappa |V|), omega/|V|)``
+    with ``|V| = sqrt(2 E'/I)``; their largest over the last tenth is
+    ``wall_twin_divergence``, and ``separation_collisions`` reads when they part.
+    """
     states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
     both = _orbit(scene, np.concatenate([states0, wall_twin_states(scene, states0, delta)]), n)
     both = jax.device_get(both)  # an Orbit of numpy arrays

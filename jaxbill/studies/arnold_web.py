@@ -1,6 +1,6 @@
 """The Arnold web of a stick in a slightly eccentric ellipse, and the diffusion of ``L`` along it.
 
-The setting (issue 20, items 3 and 4). In the circle of radius ``R`` the total
+The setting. In the circle of radius ``R`` the total
 angular momentum ``L`` is conserved and the motion of a stick with
 ``I = M ell^2`` at ``ell = 1.9``, ``R = 2`` is mostly regular: at fixed energy
 ``E`` the collision map lives on a four-dimensional section ``(s, p, alpha, L)``
@@ -49,6 +49,7 @@ from jax.typing import ArrayLike
 from jaxtyping import Float
 
 import jaxbill as jb
+from jaxbill._scenes.protocols import Scene
 
 __all__ = [
     "ellipse_scene",
@@ -267,7 +268,7 @@ def frequencies_from_orbit(circle, state0, states) -> TorusFrequencies:
 
 
 def torus_frequencies(
-    circle, states0: Float[ArrayLike, "*grid 6"], n: int = 2000, batch: int = 512
+    circle: Scene, states0: Float[ArrayLike, "*grid 6"], n: int = 2000, batch: int = 512
 ) -> TorusFrequencies:
     """``nu1``, ``nu2`` per collision of the circle orbits from ``states0`` (see the module docstring).
 
@@ -303,7 +304,12 @@ def torus_frequencies(
 # --------------------------------------------------------------------------- resonances
 
 
-def resonances(max_order: int, k2_values=(2,), nu1_range=(0.0, 1.0), nu2_range=(-1.0, 1.0)):
+def resonances(
+    max_order: int,
+    k2_values: tuple[int, ...] = (2,),
+    nu1_range: tuple[float, float] = (0.0, 1.0),
+    nu2_range: tuple[float, float] = (-1.0, 1.0),
+):
     """The harmonics ``(k1, k2)`` whose resonance lines ``k1 nu1 + k2 nu2 = k3`` cross a box of frequencies.
 
     A harmonic ``exp(i (k1 theta + k2 alpha))`` of the perturbation is

@@ -7,8 +7,7 @@ Measurement over an invariant ensemble
 ``ensemble_lyapunov`` carries one tangent vector along every orbit of an
 ensemble (the flow's tangent map at each collision, renormalised) and reads
 its log-stretch ``Lambda_i(t)`` at common times ``t_j`` of a window
-``[0, T]``, counting each orbit's collisions in the same window (Kac's lemma,
-``physics.md``, "Averages over an ensemble of orbits"). Started from an
+``[0, T]``, counting each orbit's collisions in the same window (Kac's lemma). Started from an
 invariant (Liouville) measure, totals over the ensemble then estimate the
 invariant measure's averages::
 
@@ -109,6 +108,9 @@ __all__ = [
     "fit_log_law",
     "load_small_stick_data",
     "small_stick_figure",
+    "study_scene",
+    "SCENES",
+    "SCALINGS",
 ]
 
 DATA_FILE = pathlib.Path(__file__).resolve().parents[2] / "notebooks" / "data" / "small_stick_law.npz"
@@ -230,7 +232,7 @@ def _window_estimates(log_stretch, collisions, weights, j0, t0, t1):
 
 
 def ensemble_lyapunov(
-    scene,
+    scene: jb.StickInCircle | jb.StickInEllipse,
     states: Float[ArrayLike, "B 6"],
     T: float,
     *,
@@ -608,14 +610,30 @@ def _wls(x, y, s):
 # ---------------------------------------------------------------------------
 
 SCENES = {"circle": dict(a=2.0, b=2.0), "ellipse": dict(a=2.0, b=1.4)}
+"""The study's two tables by name, their semi-axes ``a, b`` (the circle: ``a = b = R``)."""
 SCALINGS = ("fixed_I", "paper")
+"""The study's two inertias: ``"fixed_I"``, ``I = 1``; ``"paper"``, ``I = M ell^2``."""
 
 
-def _scene(name: str, ell: float, scaling: str, mass: float = 1.0):
+def study_scene(name: str, ell: float, scaling: str, mass: float = 1.0):
+    """The study's stick of half-length ``ell`` in its table ``name``, with the inertia of ``scaling``.
+
+    Args:
+        name: ``"circle"`` (``R = 2``) or ``"ellipse"`` (``a = 2``, ``b = 1.4``): ``SCENES``.
+        ell: half-length of the stick (length).
+        scaling: ``"fixed_I"`` (``I = 1``: the spin's energy is not scaled) or
+            ``"paper"`` (``I = M ell^2``, the paper's stick): ``SCALINGS``.
+        mass: total mass ``M``.
+    """
+    if name not in SCENES:
+        raise ValueError(f"name must be one of {sorted(SCENES)}; got {name!r}")
+    if scaling not in SCALINGS:
+        raise ValueError(f"scaling must be one of {SCALINGS}; got {scaling!r}")
     inertia = 1.0 if scaling == "fixed_I" else mass * ell**2
-    if name == "circle":
-        return jb.StickInCircle(R=2.0, ell=ell, mass=mass, inertia=inertia)
-    return jb.StickInEllipse(a=2.0, b=1.4, ell=ell, mass=mass, inertia=inertia)
+    a, b = SCENES[name]["a"], SCENES[name]["b"]
+    if a == b:
+        return jb.StickInCircle(R=a, ell=ell, mass=mass, inertia=inertia)
+    return jb.StickInEllipse(a=a, b=b, ell=ell, mass=mass, inertia=inertia)
 
 
 def _window(name: str, ell: float, scaling: str, growth: float, min_collisions: float) -> float:
@@ -662,7 +680,7 @@ def measure_small_stick_law(
         for scaling in scalings:
             rows, per_orbit, predicted, regular = [], [], [], []
             for k, ell in enumerate(ells):
-                scene = _scene(name, ell, scaling)
+                scene = study_scene(name, ell, scaling)
                 states, weights = jb.sample_energy_shell(scene, n_orbits, energy=energy, seed=seed + 1000 * k)
                 T = _window(name, ell, scaling, growth, min_collisions)
                 r = ensemble_lyapunov(scene, states, T, weights=weights, n_sub=n_sub, seed=seed + k)
@@ -709,7 +727,7 @@ def predicted_coefficients(*, n_samples: int = 20000, energy: float = 0.5, seed:
     for name, g in SCENES.items():
         t, c = predicted_small_stick_exponent(g["a"], g["b"], 1.0, energy=energy)
         out[f"{name}/frozen/per_time"], out[f"{name}/frozen/per_collision"] = float(t), float(c)
-    states, _ = jb.sample_energy_shell(_scene("circle", 1e-3, "fixed_I"), n_samples, energy=energy, seed=seed)
+    states, _ = jb.sample_energy_shell(study_scene("circle", 1e-3, "fixed_I"), n_samples, energy=energy, seed=seed)
     t, c, _, regular = circle_reduced_exponents(states, 1.0, R=SCENES["circle"]["a"])
     out["circle/twist/per_time"], out["circle/twist/per_collision"] = t, c
     out["circle/twist/regular_fraction"] = float(regular.mean())
