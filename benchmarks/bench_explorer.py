@@ -124,6 +124,7 @@ def main(argv=None) -> None:
             "machine": platform.machine(),
             "logical_cpus": os.cpu_count(),
             "versions": {"python": platform.python_version(), "jax": jax.__version__, "jaxbill": jb.__version__},
+            "jaxbill_path": os.path.dirname(os.path.abspath(jb.__file__)),
             "load_average": {"start": load_at_start, "end": load_at_end},
             "rows": rows,
         }

@@ -350,12 +350,16 @@ def machine_description() -> dict:
         processor = models[0] if models else processor
     except OSError:
         pass
+    # The commit of the jaxbill that was imported and timed (not necessarily this script's checkout).
+    package = os.path.dirname(os.path.abspath(jb.__file__))
     try:
         commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True, check=True
+            ["git", "rev-parse", "--short", "HEAD"], cwd=package, capture_output=True, text=True, check=True
         ).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain"], cwd=HERE, capture_output=True, text=True).stdout
-        commit += " (with uncommitted changes)" if dirty.strip() else ""
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--", "."], cwd=package, capture_output=True, text=True
+        ).stdout
+        commit += " (jaxbill/ with uncommitted changes)" if dirty.strip() else ""
     except (OSError, subprocess.CalledProcessError):
         commit = "unknown"
     return {
@@ -374,6 +378,7 @@ def machine_description() -> dict:
             "numpy": np.__version__,
             "jaxbill_commit": commit,
         },
+        "jaxbill_path": package,
         "numba_threads": numba.config.NUMBA_NUM_THREADS,
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
     }

@@ -241,9 +241,9 @@ def lyapunov_spectrum(
             whose middle exponent is the energy's zero), and the lower half
             of the spectrum is the upper half's negatives, by the pairing
             rule of a symplectic flow (``HasSymplecticFlow``): the same upper
-            half as the full run's leading vectors, 1.4-1.8x faster (a
-            batch's steps at 0.5-0.7x the rate of plain collisions, the full
-            run's at 0.34-0.44x; ``docs/performance.md``). ``False``: all
+            half as the full run's leading vectors, in about half the
+            work (the measured rates: the performance page, "Tangent
+            steps"). ``False``: all
             ``k`` vectors are carried and the pairing is measured, a check
             of how far a run of this length has converged (the paired run
             still measures the zero exponents of its upper half, whose decay
