@@ -21,11 +21,15 @@ batch) for
 with the compile time (first call minus a steady run) apart ("cached" when a
 scene of the same kind compiled it already) and the steady rate the median of
 several rounds that alternate the four runs. Nothing asserts on timings.
+Writes the figures, with the machine, the date and the versions, to
+``benchmarks/results/tangent_<UTC date and time>.json`` (``--results``).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
+import json
 import math
 import os
 import platform
@@ -45,7 +49,16 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="short runs (smoke test, < 1 min)")
     parser.add_argument("--batch", type=int, default=1024)
     parser.add_argument("--repeats", type=int, default=5, help="interleaved rounds")
+    parser.add_argument(
+        "--results",
+        default=None,
+        metavar="PATH",
+        help="JSON file for the figures (default benchmarks/results/tangent_<UTC date and time>.json; "
+        "'none': do not write one)",
+    )
     args = parser.parse_args()
+    when = datetime.datetime.now(datetime.UTC)
+    started_load = os.getloadavg()
 
     import jax
     import jax.numpy as jnp
@@ -69,6 +82,7 @@ def main() -> None:
         "| compile s (orbit / FTLE / spectrum / paired) |"
     )
     print("|---|---|---|---|---|---|---|")
+    rows = []
     for label, R, ell, inertia in SCENES:
         scene = jb.StickInCircle(R=R, ell=ell, inertia=inertia)
         states, _ = sample_energy_shell(scene, args.batch, energy=0.5, seed=0)
@@ -91,6 +105,45 @@ def main() -> None:
         compile_s = " / ".join(f"{c:.1f}" if c > 0.05 else "cached" for c in (c_orbit, c_ftle, c_spec, c_pair))
         ratios = " / ".join(f"{r / r_orbit:.2f}" for r in (r_ftle, r_spec, r_pair))
         print(f"| {label} | {r_orbit:.3g} | {r_ftle:.3g} | {r_spec:.3g} | {r_pair:.3g} | {ratios} | {compile_s} |")
+        rows.append(
+            {
+                "scene": label,
+                "orbit_rate": r_orbit,
+                "ftle_rate": r_ftle,
+                "spectrum_rate": r_spec,
+                "paired_rate": r_pair,
+                "ftle_over_orbit": r_ftle / r_orbit,
+                "spectrum_over_orbit": r_spec / r_orbit,
+                "paired_over_orbit": r_pair / r_orbit,
+                "paired_over_spectrum": r_pair / r_spec,
+            }
+        )
+    if args.results != "none":
+        path = args.results or os.path.join(
+            os.path.dirname(os.path.abspath(__file__)),
+            "results",
+            f"tangent_{when:%Y-%m-%dT%H%M}{'_quick' if args.quick else ''}.json",
+        )
+        report = {
+            "benchmark": "bench_tangent.py",
+            "date_utc": when.isoformat(timespec="seconds"),
+            "quick": args.quick,
+            "batch": args.batch,
+            "collisions": {"orbit": n_plain, "tangent": n_tangent},
+            "rounds": args.repeats,
+            "machine": platform.machine(),
+            "processor": platform.processor() or platform.machine(),
+            "logical_cpus": os.cpu_count(),
+            "jax_devices": len(jax.devices()),
+            "versions": {"python": platform.python_version(), "jax": jax.__version__, "jaxbill": jb.__version__},
+            "jaxbill_path": os.path.dirname(os.path.abspath(jb.__file__)),
+            "load_average": {"start": list(started_load), "end": list(os.getloadavg())},
+            "rows": rows,
+        }
+        with open(path, "w") as f:
+            json.dump(report, f, indent=1)
+            f.write("\n")
+        print(f"\nwrote {path}")
 
 
 if __name__ == "__main__":

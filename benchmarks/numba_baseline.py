@@ -1,16 +1,20 @@
-"""The baseline a user would write: jaxbill's method as a plain numba loop, for speed comparisons.
+"""jaxbill's method as plain numba loops, for speed comparisons.
 
 Run:  python benchmarks/numba_baseline.py        (agreement with ``jb.orbit``, about 1 min)
 
 Nothing in ``jaxbill`` imports this file. It implements, in scalar float64 code,
 the method of the library, so that ``bench_vs_numba.py`` compares two
-implementations of one algorithm, not two algorithms. One difference is kept on
-purpose: its safe steps use only the curvature bounds of the whole flight, the
-method as a user would write it from the paper's. jaxbill's search for the
-spinning stick in a circle also uses each gap's own curvature at the current
-time (``jaxbill._engine.first_root``, "sharper steps"), so it finds the same
-roots (to the time resolution) in fewer steps: what the benchmarks compare
-for that scene is the library against the plain method.
+implementations of one algorithm, not two algorithms. For the spinning stick in
+a circle it has two loops:
+
+* ``ROTOR``, the loop a user would write from the paper's method: its safe
+  steps use only the curvature bounds of the whole flight;
+* ``ROTOR_SHARPER``, the same method as jaxbill's: its steps also use each
+  gap's own curvature at the current time and a bound on the gaps' third
+  derivative (``jaxbill._engine.first_root``, "sharper steps"), so it finds the
+  same roots (to the time resolution) in fewer, dearer steps.
+
+Every other scene has one loop, the method jaxbill uses for it.
 
 * the spinning stick in a circle (``StickInCircle``, finite inertia): the quiet
   interval of ``_disc_crossing`` (radius ``R - ell``), the curvature bounds and
@@ -46,8 +50,15 @@ import types
 import numba
 import numpy as np
 
-ROTOR, LENS, CIRCLE, WALLS_ROTOR, WALLS_STATIC = 0, 1, 2, 3, 4
-KIND_NAMES = {ROTOR: "rotor", LENS: "lens", CIRCLE: "circle", WALLS_ROTOR: "walls rotor", WALLS_STATIC: "walls static"}
+ROTOR, LENS, CIRCLE, WALLS_ROTOR, WALLS_STATIC, ROTOR_SHARPER = 0, 1, 2, 3, 4, 5
+KIND_NAMES = {
+    ROTOR: "rotor",
+    LENS: "lens",
+    CIRCLE: "circle",
+    WALLS_ROTOR: "walls rotor",
+    WALLS_STATIC: "walls static",
+    ROTOR_SHARPER: "rotor, sharper steps",
+}
 
 # The constants of jaxbill's method (jaxbill._engine.first_root, _stick_in_circle, _flat_walls).
 MAX_ROOT_STEPS = 4096
@@ -55,6 +66,7 @@ EPS = float(np.finfo(np.float64).eps)
 RESOLUTION_ULPS = 4.0 * EPS
 CORNER_ULPS = 64.0 * EPS
 AMPLITUDE_PAD = 1.0 + 8.0 * EPS
+CURVATURE_PAD = 16.0 * EPS  # first_root._CURVATURE_PAD_ULPS
 KICK_NORMAL_SCALE = math.sqrt(math.pi / 2)
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -231,6 +243,91 @@ def make_engine(jit, fmod):
         time_scale = 1.0 / rate if rate > 0.0 else INF
         return rotor_first_root(R, ell, x, y, a, vx, vy, om, lower_curv, upper_curv, quiet_in, quiet_out, time_scale)
 
+    # -- jaxbill's sharper steps (``jaxbill._engine.first_root``): each gap's own curvature, a jerk bound --
+
+    @jit
+    def rotor_curvatures(ell, x, y, a, vx, vy, om, t):
+        """Both ends' ``g_k''`` after a flight of ``t``, as ``StickInCircle.gaps_along_flight`` gives them."""
+        cx, cy = x + vx * t, y + vy * t
+        phi = a + om * t
+        cu, su = math.cos(phi), math.sin(phi)
+        centre_curvature = -2.0 * (vx * vx + vy * vy)
+        along_unit = cx * cu + cy * su
+        along_curvature = 2.0 * ell * (om * (2.0 * (vy * cu - vx * su) - om * along_unit))
+        return centre_curvature - along_curvature, centre_curvature + along_curvature
+
+    @jit
+    def local_step(g, slope, curvature, lower_curv, jerk_third, pad):
+        """``(step, window, margin)`` of one gap: a falling gap's window ``S = 2 g / |d|``, what the
+        window adds to its own curvature (``jerk S / 3`` and the rounding pad), and its safe step with
+        the window's lower curvature bound, capped at ``S`` (``first_root._local_bounds``)."""
+        if slope < 0.0:
+            window = 2.0 * g / (-slope)
+            margin = (jerk_third * window if jerk_third > 0.0 else 0.0) + pad
+            lower = smaller(lower_curv, margin - curvature)
+            return smaller(step_below(g, slope, lower), window), window, margin
+        return step_below(g, slope, lower_curv), INF, INF  # no upper root on a rising gap
+
+    @jit
+    def rotor_first_root_sharper(R, ell, x, y, a, vx, vy, om, bounds, time_scale, jerk):
+        lower_curv, upper_curv, quiet_in, quiet_out = bounds
+        t = quiet_out if (quiet_in <= 0.0 and quiet_out > 0.0) else 0.0
+        index = 0
+        done = t == INF
+        steps = 0
+        jerk_third = jerk * (1.0 / 3.0)
+        pad = CURVATURE_PAD * lower_curv
+        while not done and steps < MAX_ROOT_STEPS:
+            g1, g2, d1, d2 = rotor_gaps(R, ell, x, y, a, vx, vy, om, t)
+            k1, k2 = rotor_curvatures(ell, x, y, a, vx, vy, om, t)
+            c1, c2 = larger(g1, 0.0), larger(g2, 0.0)
+            s1, w1, m1 = local_step(c1, d1, k1, lower_curv, jerk_third, pad)
+            s2, w2, m2 = local_step(c2, d2, k2, lower_curv, jerk_third, pad)
+            if s2 < s1:
+                index, s, g, slope, curvature, window, margin = 1, s2, c2, d2, k2, w2, m2
+            else:
+                index, s, g, slope, curvature, window, margin = 0, s1, c1, d1, k1, w1, m1
+            t_next = t + s
+            if t_next >= quiet_in and t_next < quiet_out:
+                t_next = quiet_out
+            resolution = RESOLUTION_ULPS * larger(t, time_scale)
+            s_hi = step_above(g, slope, smaller(upper_curv, curvature + margin))
+            if not s_hi <= window:
+                s_hi = INF  # past the window nothing is proven
+            converged = (s_hi - s <= resolution) or (t_next == t and slope < 0.0)
+            touching = True
+            if c1 == 0.0 and d1 < 0.0:
+                index = 0
+            elif c2 == 0.0 and d2 < 0.0:
+                index = 1
+            else:
+                touching = False
+            if touching:
+                t_next = t
+            finite = math.isfinite(g1) and math.isfinite(g2) and math.isfinite(d1) and math.isfinite(d2)
+            hopeless = not (math.isfinite(t_next) and finite)
+            done = touching or converged or hopeless
+            t = t_next
+            steps += 1
+        return t, index, steps, done
+
+    @jit
+    def rotor_contact_time_sharper(R, ell, x, y, a, vx, vy, om):
+        speed = math.sqrt(vx * vx + vy * vy)
+        spin = abs(om)
+        centre_radius = math.sqrt(x * x + y * y)
+        quiet_in, quiet_out = disc_crossing(x, y, vx, vy, R - ell)
+        reach = larger(math.sqrt(R * R - ell * ell), centre_radius)
+        wobble = 2.0 * ell * (2.0 * spin * speed + spin * spin * reach)
+        lower_curv = 2.0 * speed * speed + wobble
+        upper_curv = wobble - 2.0 * speed * speed
+        # g_k''' = -2 k ell W''' with |W'''| <= 3 omega^2 |v| + |omega|^3 |c(t)| (_rotor_bounds).
+        jerk = 2.0 * ell * (spin * spin * (3.0 * speed + spin * reach))
+        rate = speed / R + spin
+        time_scale = 1.0 / rate if rate > 0.0 else INF
+        bounds = (lower_curv, upper_curv, quiet_in, quiet_out)
+        return rotor_first_root_sharper(R, ell, x, y, a, vx, vy, om, bounds, time_scale, jerk)
+
     @jit
     def stick_end(R, ell, end, ux, uy, x, y, vx, vy, om):
         """Gap R^2 - |P|^2 of the end ``end`` (+1 or -1) and its speed towards the wall."""
@@ -269,8 +366,11 @@ def make_engine(jit, fmod):
         return vx, vy, om, (1 if index == 0 else -1)
 
     @jit
-    def rotor_collide(R, ell, mass, inertia, x, y, a, vx, vy, om):
-        t, index, steps, ok = rotor_contact_time(R, ell, x, y, a, vx, vy, om)
+    def rotor_collide(sharper, R, ell, mass, inertia, x, y, a, vx, vy, om):
+        if sharper:
+            t, index, steps, ok = rotor_contact_time_sharper(R, ell, x, y, a, vx, vy, om)
+        else:
+            t, index, steps, ok = rotor_contact_time(R, ell, x, y, a, vx, vy, om)
         if not ok:
             return NAN, NAN, NAN, NAN, NAN, NAN, NAN, NO_CONTACT, steps
         if not math.isfinite(t):
@@ -473,8 +573,8 @@ def make_engine(jit, fmod):
 
     @jit
     def collide(kind, size, ell, mass, inertia, ux, uy, x, y, a, vx, vy, om):
-        if kind == ROTOR:
-            return rotor_collide(size, ell, mass, inertia, x, y, a, vx, vy, om)
+        if kind == ROTOR or kind == ROTOR_SHARPER:
+            return rotor_collide(kind == ROTOR_SHARPER, size, ell, mass, inertia, x, y, a, vx, vy, om)
         if kind == LENS:
             return lens_collide(size, ell, ux, uy, x, y, a, vx, vy, om)
         if kind == CIRCLE:
@@ -485,6 +585,7 @@ def make_engine(jit, fmod):
         collide=collide,
         orbit_direction=orbit_direction,
         rotor_contact_time=rotor_contact_time,
+        rotor_contact_time_sharper=rotor_contact_time_sharper,
         walls_contact_time=walls_contact_time,
     )
 
@@ -622,14 +723,18 @@ def run_batch_parallel(params, states0, n, threads=None):
 # -- scenes and valid random states ------------------------------------------------
 
 
-def circle_params(R, ell, mass=1.0, inertia=None):
-    """``params`` of ``StickInCircle(R, ell, mass, inertia)`` (``inertia=None``: ``mass ell^2``)."""
+def circle_params(R, ell, mass=1.0, inertia=None, sharper_steps=False):
+    """``params`` of ``StickInCircle(R, ell, mass, inertia)`` (``inertia=None``: ``mass ell^2``).
+
+    ``sharper_steps``: for the spinning stick, the loop with jaxbill's sharper
+    steps (``ROTOR_SHARPER``) rather than the flight's curvature bounds alone.
+    """
     if ell == 0.0:
         kind = CIRCLE
     elif inertia is not None and math.isinf(inertia):
         kind = LENS
     else:
-        kind = ROTOR
+        kind = ROTOR_SHARPER if sharper_steps else ROTOR
     inertia = mass * ell * ell if inertia is None else inertia
     return np.array([kind, R, ell, mass, inertia], dtype=np.float64)
 
@@ -692,6 +797,8 @@ def random_states(params, count, seed=0, margin=1e-3):
 CHECK_SCENES = {
     "rotor R=2 ell=1.9": circle_params(2.0, 1.9),
     "rotor R=2 ell=1.0": circle_params(2.0, 1.0),
+    "rotor R=2 ell=1.9, sharper steps": circle_params(2.0, 1.9, sharper_steps=True),
+    "rotor R=2 ell=1.0, sharper steps": circle_params(2.0, 1.0, sharper_steps=True),
     "lens R=2 ell=1.5": circle_params(2.0, 1.5, inertia=math.inf),
     "circle R=2": circle_params(2.0, 0.0),
     "walls h=3 ell=1": walls_params(3.0, 1.0),
@@ -721,7 +828,7 @@ def jaxbill_root_steps(params, states_before):
 
     scene = jaxbill_scene(params)
     kind = int(params[0])
-    if kind not in (ROTOR, WALLS_ROTOR):
+    if kind not in (ROTOR, ROTOR_SHARPER, WALLS_ROTOR):
         return np.zeros(len(states_before), np.int64)
 
     def steps(state):

@@ -2,11 +2,12 @@
 
 ``explore(scene)`` opens one figure:
 
-* the **section panel**: the scene's area-preserving section at fixed
-  invariants (``StickInCircle``: the reduced section ``(s, p)`` at ``E``
-  and ``L``; the wall scenes: the floor section ``(theta, p)`` at ``E'``
-  and, in 3D, ``I w_z``), seeded with a survey of orbits that start evenly
-  spread over it and run as one vmapped batch;
+* the **section panel**: the scene's section at fixed invariants (for
+  instance ``StickInCircle``: the reduced section ``(s, p)`` at ``E`` and
+  ``L``; ``StickInEllipse``: the Birkhoff section of the touching end at
+  ``E``; the wall scenes: the floor section ``(theta, p)`` at ``E'`` and, in
+  3D, ``I w_z``), seeded with a survey of orbits that start evenly spread
+  over it and run as one vmapped batch;
 * the **configuration panel**: the last clicked orbit's first collisions
   with the stick drawn at its contacts;
 * **sliders** for the scene's own parameters (every finite parameter except
@@ -587,21 +588,23 @@ def explore(
     call ``matplotlib.pyplot.show()`` after it. Details: ``jaxbill._explorer``.
 
     Args:
-        scene: one scene with a section: ``StickInCircle`` (the reduced
-            section ``(s, p)``, for the lens and the circle their Birkhoff
-            section), ``StickBetweenWalls2D`` (the floor section
-            ``(theta mod pi, p)``) or ``StickBetweenWalls3D`` (the reduced
-            floor section at fixed ``I w_z``), or a scene that provides a
-            ``SectionChart``.
+        scene: one scene with a section, that is any scene that provides a
+            ``SectionChart``; every scene of jaxbill does: ``StickInCircle``
+            (the reduced section ``(s, p)``, for the lens and the circle their
+            Birkhoff section), ``StickInEllipse`` (the Birkhoff section of the
+            touching end), ``StickBetweenWalls2D`` (the floor section ``(theta
+            mod pi, p)``), ``StickBetweenWalls3D`` (the reduced floor section
+            at fixed ``I w_z``), ...
         survey_orbits: orbits in the survey, started evenly over the section.
         survey_collisions: collisions of each survey orbit.
         click_collisions: collisions of each clicked orbit.
         chunk: collisions per drawing step of a clicked orbit.
         save_path: where "save PNG" writes (default ``./jaxbill_explorer.png``).
-        **invariants: the section's fixed quantities (``StickInCircle``:
-            ``energy`` ``E``, default 0.5, and ``angular_momentum`` ``L``,
-            default 0; the walls: ``energy`` ``E'``, default 0.5, and in 3D
-            ``spin`` ``I w_z``, default ``0.6 sqrt(I)``).
+        **invariants: the section's fixed quantities, named by the chart's
+            ``invariant_symbols`` (``StickInCircle``: ``energy`` ``E``, default
+            0.5, and ``angular_momentum`` ``L``, default 0; ``StickInEllipse``:
+            ``energy`` ``E``, default 0.5; the walls: ``energy`` ``E'``, default
+            0.5, and in 3D ``spin`` ``I w_z``, default ``0.6 sqrt(I)``).
 
     Returns:
         The ``Explorer``: its ``figure``, ``click(x, y)``,

@@ -7,6 +7,13 @@ import sys
 import time
 
 DEFAULT_DEMO_STATE = (0.05, 0.02, 0.4, 0.8, 0.5, 0.6)
+# --scene of `jaxbill explore`: the scene each name opens (their parameters are the options below).
+EXPLORE_SCENES = {
+    "circle": "StickInCircle",
+    "ellipse": "StickInEllipse",
+    "walls2d": "StickBetweenWalls2D",
+    "walls3d": "StickBetweenWalls3D",
+}
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -58,6 +65,9 @@ def _explore_scene(args: argparse.Namespace):
     if args.scene == "circle":
         ell = 1.2 if args.ell is None else args.ell
         return jb.StickInCircle(R=args.R, ell=ell, inertia=args.inertia)
+    if args.scene == "ellipse":
+        ell = 0.5 if args.ell is None else args.ell
+        return jb.StickInEllipse(a=args.a, b=args.b, ell=ell, inertia=args.inertia)
     ell = 1.0 if args.ell is None else args.ell
     walls = jb.StickBetweenWalls2D if args.scene == "walls2d" else jb.StickBetweenWalls3D
     return walls(h=args.h, ell=ell, inertia=args.inertia)
@@ -101,9 +111,20 @@ def _explore(args: argparse.Namespace) -> int:
     return 0
 
 
+def _version() -> str:
+    from jaxbill import __version__
+
+    return __version__
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="jaxbill", description="Rigid-body billiards in JAX.")
-    commands = parser.add_subparsers(dest="command")
+    parser = argparse.ArgumentParser(
+        prog="jaxbill",
+        description="Rigid-body billiards in JAX.",
+        epilog="Run 'jaxbill COMMAND --help' for a command's options.",
+    )
+    parser.add_argument("--version", action="version", version=f"jaxbill {_version()}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     demo = commands.add_parser("demo", help="print the first collisions of a default orbit and its invariants")
     demo.add_argument("--R", type=float, default=2.0, help="circle radius (default 2)")
     demo.add_argument("--ell", type=float, default=1.9, help="stick half-length (default 1.9, the paper's Fig. 2)")
@@ -124,14 +145,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     explore.add_argument(
         "--scene",
-        choices=("circle", "walls2d", "walls3d"),
+        choices=tuple(EXPLORE_SCENES),
         default="circle",
-        help="StickInCircle (default), StickBetweenWalls2D or StickBetweenWalls3D",
+        help=", ".join(f"{name}: {scene}" for name, scene in EXPLORE_SCENES.items()) + " (default circle)",
     )
     explore.add_argument("--R", type=float, default=2.0, help="circle radius (default 2)")
+    explore.add_argument("--a", type=float, default=2.0, help="the ellipse's semi-axis along x (default 2)")
+    explore.add_argument("--b", type=float, default=1.4, help="the ellipse's semi-axis along y (default 1.4)")
     explore.add_argument("--h", type=float, default=3.0, help="distance between the walls (default 3)")
     explore.add_argument(
-        "--ell", type=float, default=None, help="stick half-length (default 1.2 in the circle, 1 between walls)"
+        "--ell",
+        type=float,
+        default=None,
+        help="stick half-length (default 1.2 in the circle, 0.5 in the ellipse, 1 between walls)",
     )
     explore.add_argument(
         "--inertia", type=float, default=None, help="moment of inertia (default mass ell^2; inf: the static lens)"
@@ -156,7 +182,9 @@ def main(argv: list[str] | None = None) -> int:
     explore.set_defaults(run=_explore)
     args = parser.parse_args(argv)
     if args.command is None:
-        args = parser.parse_args(["demo", *(argv or [])])
+        parser.print_help(sys.stderr)
+        print("\njaxbill: error: choose a command (demo, figures or explore)", file=sys.stderr)
+        return 2
     try:
         return args.run(args)
     except ValueError as error:

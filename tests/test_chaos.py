@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -69,9 +70,14 @@ def test_finite_time_exponent_matches_spectrum_and_fractions():
     s = jnp.asarray([[0.1, -0.2, 0.3, 0.6, 0.5, 0.7]])
     ftle = finite_time_lyapunov(scene, s, 4000)
     spec = lyapunov_spectrum(scene, s[0], 4000)
-    # (The batched orbit and the single one part after ~50 collisions, an ulp
-    # apart at first (FMA contraction on CPU): same statistics, not same orbit.)
-    np.testing.assert_allclose(float(ftle.per_time[0]), float(spec.exponents[0]), rtol=2e-2)
+    # On a CPU where jaxbill compiles without FMA the batched orbit is the single one, bit for bit, and the
+    # two estimates of the leading exponent differ only as estimators: one vector's growth against the
+    # first QR diagonal, 1.2e-4 apart after 4000 collisions (the start vector's transient). Where the
+    # compiler contracts multiply-adds (a GPU), the two orbits part after ~50 collisions: the same
+    # statistics, not the same orbit.
+    without_fma = jax.default_backend() == "cpu" and jb.backend_settings()["small_loops"].startswith("set")
+    rtol = 1e-3 if without_fma else 2e-2
+    np.testing.assert_allclose(float(ftle.per_time[0]), float(spec.exponents[0]), rtol=rtol)
     np.testing.assert_allclose(
         float(ftle.per_collision[0]), float(ftle.per_time[0]) * float(ftle.time[0]) / 4000, rtol=1e-12
     )

@@ -86,6 +86,24 @@ def test_demo_bad_ell_exits_2_naming_ell(ell):
     assert re.search(r"\bell\b", proc.stderr), proc.stderr
     assert "Traceback" not in proc.stderr
     assert not _rows(proc.stdout)
+    # A scalar parameter is quoted as the number given, not as a list of one.
+    assert re.search(rf"got {re.escape(str(float(ell)))}$", proc.stderr.strip()), proc.stderr
+
+
+def test_version_prints_the_package_version():
+    proc = _run("--version")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"jaxbill {jb.__version__}"
+
+
+def test_no_command_prints_the_help_and_exits_2():
+    """Plain ``jaxbill`` runs nothing: it lists the commands and says to choose one."""
+    proc = _run()
+    assert proc.returncode == 2
+    assert not _rows(proc.stdout) and "collisions in" not in proc.stdout
+    for command in ("demo", "figures", "explore"):
+        assert re.search(rf"^\s+{command}\s", proc.stderr, re.M), proc.stderr
+    assert "choose a command" in proc.stderr
 
 
 def test_demo_non_numeric_ell_is_a_usage_error():

@@ -215,9 +215,10 @@ def test_quiet_ellipse_keeps_both_ends_inside(a, b, ell):
         px, py = cx + k * ell * np.cos(phi), cy + k * ell * np.sin(phi)
         assert np.all((px / a) ** 2 + (py / b) ** 2 <= 1.0 + 1e-12)
     # Tight where the minor axis meets the wall: the quiet ellipse is no smaller than it must be there.
-    minor_axis_end = (0.0, min(a, b) - ell) if a >= b else (min(a, b) - ell, 0.0)
+    # The stick centred at the end of the quiet ellipse's minor axis, lying along that axis, touches the wall.
+    (cx, cy), (ux, uy) = ((0.0, sy), (0.0, 1.0)) if a >= b else ((sx, 0.0), (1.0, 0.0))
     assert min(sx, sy) == pytest.approx(min(a, b) - ell)
-    assert minor_axis_end is not None
+    assert ((cx + ell * ux) / a) ** 2 + ((cy + ell * uy) / b) ** 2 == pytest.approx(1.0, abs=1e-12)
 
 
 def test_the_naive_quiet_ellipse_is_not_safe():

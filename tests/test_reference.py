@@ -13,7 +13,8 @@ two exact orbits started ``1e-15`` (relative) apart stay within ``1e-11``.
   a horizon of at least 10, so no comparison is vacuous.
 * ``test_one_step_map_matches_reference``: at every one of the 50 collisions,
   the reference restarted from jaxbill's own float64 state reproduces jaxbill's
-  next collision (flight time, contact, state) to ``1e-10``. This checks each
+  next collision (flight time, contact, state) to ``3e-13`` (``1e-11`` for a
+  grazing hit), plus the rounding of the contact angle. This checks each
   collision with only its local conditioning, beyond the chaos horizon too.
 * The remaining tests check the reference itself against things it does not
   use: closed forms for the lens and the circle, the impulse as a mass-weighted
@@ -45,6 +46,12 @@ with open(gen.DATA_PATH) as _f:
 DATA = {c["name"]: c for c in _DATA["cases"]}
 NAMES = list(DATA)
 TOL = gen.AGREEMENT_TOL  # 1e-10
+# One collision from jaxbill's own state carries only that collision's conditioning (docs/accuracy.md):
+# 3e-13, measured up to 3e-14 over every collision of the well-conditioned cases that graze nothing;
+# a grazing hit's contact time moves by dg / g' with g' far below its usual size: 1e-11 (measured
+# up to 3.6e-13, as the ellipse's and the walls' grazing hits, up to 1e-12).
+ONE_STEP_TOL = 3e-13
+GRAZING_HIT_TOL = 1e-11
 
 
 def _inertia(c):
@@ -130,8 +137,9 @@ def test_one_step_map_matches_reference(name):
     """Every collision of jaxbill's orbit, restarted in the reference from
     jaxbill's own previous float64 state.
 
-    Tolerance: ``1e-10`` plus the rounding float64 must make in the contact
-    angle, ``10 * 2^-52 * (|omega dt| + W T)``:
+    Tolerance: ``ONE_STEP_TOL`` (``GRAZING_HIT_TOL`` for a grazing hit) plus
+    the rounding float64 must make in the contact angle, ``10 * 2^-52 *
+    (|omega dt| + W T)``:
 
     * ``|omega dt|``: the phase ``alpha + omega dt`` is rounded relative to its
       size (a stick turning by 1e6 rad in a flight cannot know its angle
@@ -148,7 +156,11 @@ def test_one_step_map_matches_reference(name):
       1e6``: there it is ``10 eps R / ell = 4.4e-9`` (the case's
       ``ill_conditioned`` note), and restarted collisions were measured to
       deviate by up to ``2.2 eps R / ell`` over 300 collisions, before and
-      after the impulse's rounding was changed."""
+      after the impulse's rounding was changed (``9e-10`` over these 50).
+
+    Measured beyond the rounding term: up to ``2.7e-13`` (``fast_spin_heavy_rotor``,
+    an ill-conditioned case), ``3e-14`` in the others that graze nothing,
+    ``3.6e-13`` in the grazing hits."""
     c = DATA[name]
     t, s, k = _jaxbill_orbit(name)
     R, ell, mass, inertia = _args(c)
@@ -164,7 +176,8 @@ def test_one_step_map_matches_reference(name):
             dt_lib = mpf(t[j]) - mpf(prev_t)
             e_t = float(abs(dt_lib - rt[0])) / T
             e_s = gen.collision_errors([0.0], [list(s[j])], [0.0], rs, sc)[0]
-        tol = TOL + 10 * 2.0**-52 * (abs(prev_state[5] * float(rt[0])) + W * T)
+        base = GRAZING_HIT_TOL if name.startswith("graze_hit") else ONE_STEP_TOL
+        tol = base + 10 * 2.0**-52 * (abs(prev_state[5] * float(rt[0])) + W * T)
         assert int(k[j]) == rk[0], f"collision {j}: contact jaxbill {k[j]} reference {rk[0]}"
         assert e_t <= tol and e_s <= tol, f"collision {j}: dt error {e_t:.3g}, state error {e_s:.3g} > {tol:.3g}"
         prev_state, prev_t = [float(v) for v in s[j]], t[j]

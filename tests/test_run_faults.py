@@ -211,7 +211,10 @@ DISK_SECTION = Section(every_collision, capacity=DISK_CHUNK)
 def small_disk(tmp_path):
     """A 2 MiB tmpfs (root only, and only where mounting is allowed)."""
     if not hasattr(os, "geteuid") or os.geteuid() != 0 or shutil.which("mount") is None:
-        pytest.skip("mounting a small tmpfs needs root; test_a_full_disk_injected covers the same paths")
+        pytest.skip(
+            "mounting a small tmpfs needs root; test_a_refused_reservation_fails_before_the_first_collision and "
+            "test_a_write_error_midway_keeps_the_checkpoint_and_resumes inject the same faults"
+        )
     disk = tmp_path / "disk"
     disk.mkdir()
     mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(disk)], capture_output=True)
@@ -265,6 +268,30 @@ def test_too_little_space_fails_before_the_first_collision(tmp_path, monkeypatch
     with pytest.raises(OSError, match=f"{out} needs [0-9]+ bytes .* and 1000 bytes .* are free there") as caught:
         run(scene(), state_for(1), N, record="states", chunk=CHUNK, out=out)
     assert caught.value.errno == errno.ENOSPC
+    assert chunks == [] and not out.exists()  # nothing run, nothing left
+
+
+@pytest.mark.skipif(not hasattr(os, "posix_fallocate"), reason="no posix_fallocate here: nothing is reserved")
+def test_a_refused_reservation_fails_before_the_first_collision(tmp_path, monkeypatch):
+    """The free-space check passes but the filesystem refuses the records' blocks (``posix_fallocate``
+    answers ENOSPC, as a quota, a thin volume or another writer filling the disk meanwhile may): the run
+    fails before its first collision, saying what it needs and what is free, and leaves nothing behind."""
+    asked = []
+
+    def refuse(fd, offset, length):
+        asked.append((offset, length))
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(_run_guard.os, "posix_fallocate", refuse)
+    chunks = []
+    monkeypatch.setattr(_streaming._ProgressBar, "update", lambda self, done: chunks.append(done))
+    out = tmp_path / "run"
+    with pytest.raises(OSError, match=f"{out} needs [0-9]+ bytes .* are free there; nothing was run") as caught:
+        run(scene(), state_for(1), N, record="states", chunk=CHUNK, out=out)
+    assert caught.value.errno == errno.ENOSPC
+    assert isinstance(caught.value.__cause__, OSError) and caught.value.__cause__.errno == errno.ENOSPC
+    # The first record file's reservation is the call refused: its whole size, N times 8 bytes past the header.
+    assert len(asked) == 1 and asked[0][0] == 0 and asked[0][1] > N * 8
     assert chunks == [] and not out.exists()  # nothing run, nothing left
 
 

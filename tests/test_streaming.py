@@ -363,3 +363,48 @@ def test_zero_collisions_returns_the_start():
     assert result.chunks == 0 and result.state.shape == (0, scene.state_size)
     np.testing.assert_array_equal(result.final_state, state0)
     assert float(result.time) == 0.0
+
+
+@pytest.mark.parametrize("record", ["final", "states", "section"])
+def test_an_empty_batch_returns_an_empty_run(tmp_path, record):
+    """As ``jb.orbit`` returns empty results for ``(0, S)`` states, ``jb.run`` returns a run of no orbits."""
+    scene = rotor()
+    spec = Section(hits_end_p1, position) if record == "section" else record
+    empty = np.zeros((0, scene.state_size))
+    orbit = jb.orbit(scene, empty, N)
+    for out in (None, tmp_path / record):
+        result = run(scene, empty, N, record=spec, out=out)
+        assert result.final_state.shape == (0, scene.state_size) and result.time.shape == (0,)
+        assert result.contact_counts.shape[0] == 0 and result.max_energy_error.shape == (0,)
+        if record == "states":
+            assert result.t.shape == orbit.t.shape == (0, N)
+            assert result.state.shape == orbit.state.shape == (0, N, scene.state_size)
+        if record == "section":
+            assert result.section.point.shape == (0, 2)
+
+
+def test_checkpoint_load_takes_a_run_directory(tmp_path, expected_single):
+    scene, state0, _ = expected_single["lens"]
+    result = run(scene, state0, N, out=tmp_path / "run")
+    from_directory = jb.Checkpoint.load(tmp_path / "run")
+    from_file = jb.Checkpoint.load(tmp_path / "run" / "checkpoint.npz")
+    assert from_directory.collisions == from_file.collisions == N
+    np.testing.assert_array_equal(from_directory.state, result.final_state)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="directory without a run's checkpoint.npz") as raised:
+        jb.Checkpoint.load(tmp_path / "empty")
+    assert raised.value.filename == str(tmp_path / "empty" / "checkpoint.npz")
+
+
+def test_resume_into_the_run_directory_with_its_own_checkpoint(tmp_path, expected_single):
+    """A run's own checkpoint (in memory, as a file or as its directory) continues it in its directory,
+    as resume=True does; a checkpoint of another point of the run is refused, naming what to pass."""
+    scene, state0, expected = expected_single["lens"]
+    first = run(scene, state0, 50, out=tmp_path / "run")
+    for own in (first.checkpoint, tmp_path / "run" / "checkpoint.npz", tmp_path / "run"):
+        first.checkpoint.save(tmp_path / "run" / "checkpoint.npz")  # the run back at collision 50
+        rest = run(scene, state0, 80, out=tmp_path / "run", resume=own)
+        assert jb.Checkpoint.load(tmp_path / "run").collisions == rest.collisions == 80
+        np.testing.assert_array_equal(rest.final_state, np.asarray(expected.state)[79])
+    with pytest.raises(ValueError, match=r"not the checkpoint of the run in .* at collision 80.*pass resume=True"):
+        run(scene, state0, N, out=tmp_path / "run", resume=first.checkpoint)

@@ -170,21 +170,28 @@ VMAP_CASES = [(1.9, None), (1.0, None), (1.0, INF), (0.0, None)]
 
 @pytest.mark.parametrize("ell, inertia", VMAP_CASES)
 def test_vmap_and_batch_equal_single_runs(ell, inertia):
-    """Default XLA flags: FMA contraction may differ between the scalar and the
-    vectorized program (API.md), so agreement is to rounding at first, and the
-    contact sequences are identical for as long as the orbits are still the
-    same orbit (configurations within 1e-6; beyond that chaos has amplified the
-    ulps and they legitimately part)."""
+    """On a CPU, with the settings ``import jaxbill`` makes (no FMA, ``jaxbill._engine.backend``), the
+    scalar and the vectorized programs round alike: every orbit is bitwise the single run. Where the
+    compiler may contract multiply-adds differently in the two programs (a GPU), agreement is to
+    rounding at first, and the contact sequences are identical for as long as the orbits are still
+    the same orbit (configurations within 1e-6; beyond that chaos has amplified the ulps and they
+    legitimately part)."""
     scene = make_scene(R, ell, 1.0, inertia)
     states = random_states(np.random.default_rng(20), 3, R, ell, kind_of(ell, inertia))
     vm = jax.vmap(jb.orbit, in_axes=(None, 0, None))(scene, jnp.asarray(states), N_VMAP)
     bt = jb.orbit(scene, jnp.asarray(states), N_VMAP)
+    bitwise = jax.default_backend() == "cpu" and jb.backend_settings()["small_loops"].startswith("set")
     for b in range(len(states)):
         one = jb.orbit(scene, jnp.asarray(states[b]), N_VMAP)
         for name, other in (("vmap", vm), ("batched", bt)):
             s1, s2 = np.asarray(one.state), np.asarray(other.state[b])
             t1, t2 = np.asarray(one.t), np.asarray(other.t[b])
             assert s2.shape == (N_VMAP, 6) and t2.shape == (N_VMAP,)
+            if bitwise:
+                np.testing.assert_array_equal(s2, s1, err_msg=f"{name}: states differ from the single run")
+                np.testing.assert_array_equal(t2, t1, err_msg=f"{name}: times differ from the single run")
+                np.testing.assert_array_equal(np.asarray(other.contact[b]), np.asarray(one.contact), err_msg=name)
+                continue
             first = slice(0, 5)
             assert np.max(np.abs(s1[first] - s2[first])) <= 1e-12 * max(R, np.max(np.abs(s1[first])))
             assert np.max(np.abs(t1[first] - t2[first])) <= 1e-12 * t1[4]
@@ -240,8 +247,8 @@ _AVX_SCRIPT = textwrap.dedent(
 
 
 def test_vmap_and_batch_bitwise_equal_single_runs_without_fma_differences():
-    """With ``XLA_FLAGS=--xla_cpu_max_isa=AVX`` (no FMA on CPU) the vectorized
-    and the scalar programs round identically: 200 collisions bitwise equal."""
+    """With the user's own ``XLA_FLAGS=--xla_cpu_max_isa=AVX`` (no FMA on CPU; jaxbill then leaves the
+    flags alone) the vectorized and the scalar programs round identically: 200 collisions bitwise equal."""
     env = dict(os.environ)
     env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_cpu_max_isa=AVX").strip()
     env["JAX_PLATFORMS"] = "cpu"

@@ -48,6 +48,10 @@ DATA = {c["name"]: c for c in _DATA["cases"]}
 NAMES = list(DATA)
 TOL = gen.AGREEMENT_TOL  # 1e-10
 EPS = 2.0**-52
+# One collision from jaxbill's own state (docs/accuracy.md, as for the circle in test_reference.py):
+# 3e-13, and 1e-11 for a grazing hit, whose contact time moves by dg / g' with g' far below its usual size.
+ONE_STEP_TOL = 3e-13
+GRAZING_HIT_TOL = 1e-11
 SCENE_CLASS = {"2D": "StickBetweenWalls2D", "3D": "StickBetweenWalls3D"}
 
 
@@ -761,8 +765,11 @@ def test_one_step_map_matches_reference(name):
     jaxbill's own previous float64 state (the end(s) it just bounced detected
     as on the wall and opening).
 
-    Tolerance: ``1e-10`` plus the rounding float64 must make in the
-    orientation, ``10 * 2^-52 * |Omega dt|`` (the angle turned in the flight)."""
+    Tolerance: ``ONE_STEP_TOL`` (``GRAZING_HIT_TOL`` for a grazing hit) plus
+    the rounding float64 must make in the orientation, ``10 * 2^-52 * |Omega
+    dt|`` (the angle turned in the flight). Measured beyond that term: up to
+    ``8.4e-14`` (``2D/fast_spin_1e3_heavy_rotor``), ``3.0e-13`` in the grazing
+    hits."""
     c = DATA[name]
     kind = c["kind"]
     t, s, k = _jaxbill_orbit(name)
@@ -779,7 +786,8 @@ def test_one_step_map_matches_reference(name):
             phi = gen.turned(kind, prev_state, rt, rs)
             e_s = gen.collision_errors(kind, [0.0], [list(s[j])], [0.0], rs, sc, phi)[0]
         spin = abs(prev_state[5]) if kind == "2D" else float(np.linalg.norm(prev_state[9:12]))
-        tol = TOL + 10 * EPS * spin * float(rt[0])
+        base = GRAZING_HIT_TOL if name.split("/")[-1].startswith("graze_hit") else ONE_STEP_TOL
+        tol = base + 10 * EPS * spin * float(rt[0])
         assert int(k[j]) == rk[0], f"collision {j}: contact jaxbill {k[j]} reference {rk[0]}"
         assert e_t <= tol and e_s <= tol, f"collision {j}: dt error {e_t:.3g}, state error {e_s:.3g} > {tol:.3g}"
         prev_state, prev_t = [float(v) for v in s[j]], t[j]

@@ -217,18 +217,18 @@ def lyapunov_spectrum(
     in an orthonormal basis of them at each state.
 
     Args:
-        scene: any scene (``StickInCircle``, ``StickBetweenWalls2D``,
-            ``StickBetweenWalls3D``).
+        scene: any scene (``StickInCircle``, ``StickInEllipse``,
+            ``StickBetweenWalls2D``, ``StickBetweenWalls3D``, ...).
         state0: shape ``(S,)`` (``S = scene.state_size``), or a batch
             ``(B, S)`` (the run is vmapped; ``jax.vmap`` over this function works too).
         n: number of collisions (a Python int, static); a multiple of ``qr_every``.
         per: ``"time"`` (default): the flow's spectrum per unit time, from the
             fixed-time flow tangent maps, with one exponent per dynamical
-            direction ``k``: 6 for a spinning stick in a circle, 4 = ``(x, y,
-            vx, vy)`` for the static lens and the circle; 4 = ``(z, theta, vz,
-            omega)`` for ``StickBetweenWalls2D``, 6 for
-            ``StickBetweenWalls3D`` (2 for a wall stick that never turns; see
-            ``jaxbill.dynamical_frame``).
+            direction ``k``, the scene's (``jaxbill.dynamical_frame``): for
+            instance 6 for a spinning stick in a circle or an ellipse, 4 =
+            ``(x, y, vx, vy)`` for a stick there that never turns and for the
+            point; 4 = ``(z, theta, vz, omega)`` for ``StickBetweenWalls2D``, 6
+            for ``StickBetweenWalls3D`` (2 for a wall stick that never turns).
             ``"collision"``: the spectrum of the collision (section) map per
             collision, from its Jacobian restricted to the section: one exponent
             fewer (the flow direction is not part of the section), ``k - 1``.
@@ -241,9 +241,9 @@ def lyapunov_spectrum(
             whose middle exponent is the energy's zero), and the lower half
             of the spectrum is the upper half's negatives, by the pairing
             rule of a symplectic flow (``HasSymplecticFlow``): the same upper
-            half as the full run's leading vectors, 1.4-1.8x faster (a
-            batch's steps at 0.5-0.7x the rate of plain collisions, the full
-            run's at 0.34-0.44x; ``docs/performance.md``). ``False``: all
+            half as the full run's leading vectors, in about half the
+            work (the measured rates: the performance page, "Tangent
+            steps"). ``False``: all
             ``k`` vectors are carried and the pairing is measured, a check
             of how far a run of this length has converged (the paired run
             still measures the zero exponents of its upper half, whose decay

@@ -72,25 +72,27 @@ def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, "
     """The collision map: from ``state`` to the state just after the next collision.
 
     Args:
-        scene: a ``StickInCircle``, ``StickBetweenWalls2D`` or
-            ``StickBetweenWalls3D``.
-        state: float64, shape ``(scene.state_size,)``, laid out as the scene's
-            module docstring says (``StickInCircle``: ``[x, y, alpha, vx, vy,
-            omega]``); both ends inside (an end on a wall must be moving
-            inwards, as it is just after a collision).
+        scene: any scene: one of jaxbill's (``StickInCircle``,
+            ``StickInEllipse``, ``StickBetweenWalls2D``, ``StickBetweenWalls3D``,
+            ...) or one written for the engine.
+        state: float64, shape ``(scene.state_size,)``, laid out as the
+            scene's ``state_layout`` says (``StickInCircle``: ``[x, y, alpha,
+            vx, vy, omega]``); both ends inside (an end on a wall must be
+            moving inwards, as it is just after a collision).
 
     Returns:
         ``(new_state, dt, contact)``: the state just after the impulse, the
-        flight time ``dt`` to the collision, and the contact: for
-        ``StickInCircle`` ``+1`` end P1, ``-1`` end P2; for the wall scenes
-        ``+1``/``-1`` P1/P2 on the floor and ``+3``/``-3`` on the ceiling;
-        ``2`` several contacts at once, ``0`` none. A flight that never
-        reaches a wall (e.g. ``v = 0`` with ``|c| + ell < R``) returns
-        ``dt = inf``, contact 0 and the state unchanged. After a collision
-        angles are wrapped into ``[-pi, pi)``.
+        flight time ``dt`` to the collision, and the contact, the scene's code
+        of the end that hit: in a circle or an ellipse ``+1`` end P1, ``-1``
+        end P2; between walls ``+1``/``-1`` P1/P2 on the floor and
+        ``+3``/``-3`` on the ceiling; ``2`` several contacts at once, ``0``
+        none. A flight that never reaches a wall (e.g. ``v = 0`` with ``|c| +
+        ell < R``) returns ``dt = inf``, contact 0 and the state unchanged.
+        After a collision angles are wrapped into ``[-pi, pi)``.
 
-    What follows describes ``StickInCircle``; the wall scenes use the same
-    safe-step search on their four gaps (see ``jaxbill._scenes.walls.engine``).
+    What follows describes ``StickInCircle``; every scene whose gaps are not
+    quadratic in time takes the same safe-step search on its own gaps (its
+    module docstring says which).
 
     The collision time. For the static lens (``inertia = inf``, ``omega = 0``)
     each end moves on a straight line and its contact time is the larger root

@@ -50,6 +50,7 @@ import numpy as np
 
 from jaxbill._engine.first_root import first_root, root_step, search_start, select, with_curvatures
 from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT, TWO_PI, cos_sin_polynomial, remainder_two_pi
+from jaxbill._engine.validation import is_concrete
 from jaxbill._scenes.protocols import NO_CONTACT
 
 # Static bound on root-search steps per collision. Typical collisions take a
@@ -144,7 +145,9 @@ def computed_once(function, *operands):
     constant one would be folded and the conditional removed. Only XLA:CPU gets
     it; see ``without_conditionals`` for the drivers that do without.
     """
-    if not _conditionals():
+    if not _conditionals() or all(is_concrete(x) for x in jax.tree.leaves(operands)):
+        # Called eagerly (e.g. ``jb.end_points`` on concrete states) nothing is fused, and a conditional
+        # would compile a new program at every call (its branches are new functions each time).
         return function(*operands)
     always = jax.lax.optimization_barrier(jnp.asarray(True))
     never_taken = lambda *ops: jax.tree.map(lambda r: jnp.zeros(r.shape, r.dtype), jax.eval_shape(function, *ops))  # noqa: E731

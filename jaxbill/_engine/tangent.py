@@ -272,8 +272,9 @@ def tangent_map(
     """The Jacobian of one collision: ``(new_state, dt, contact, jacobian)``.
 
     Args:
-        scene: any scene (``StickInCircle``, ``StickBetweenWalls2D``,
-            ``StickBetweenWalls3D``; its leaves may be traced).
+        scene: any scene (``StickInCircle``, ``StickInEllipse``,
+            ``StickBetweenWalls2D``, ``StickBetweenWalls3D``, ...; its leaves
+            may be traced).
         state: float64, shape ``(S,)``, ``S = scene.state_size`` (the
             scene's ``state_layout``).
         flow: ``False`` (default): the Jacobian ``DP`` of the collision map

@@ -63,8 +63,9 @@ def check_scene(scene) -> None:
 def check_parameter(name: str, value: np.ndarray, ok: np.ndarray, valid: str) -> None:
     """ValueError naming ``name``, its valid range and (up to 4) offending values, unless ``ok`` everywhere."""
     if not np.all(ok):
-        bad = value[~ok] if value.ndim else value
-        raise ValueError(f"{name} must be {valid}; got {bad.ravel()[:4].tolist()}")
+        # A scalar parameter prints as itself; a batch as (up to 4 of) its offending values.
+        bad = value[~ok].ravel()[:4].tolist() if value.ndim else value.item()
+        raise ValueError(f"{name} must be {valid}; got {bad}")
 
 
 def require_x64() -> None:

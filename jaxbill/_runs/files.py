@@ -20,6 +20,7 @@ one file is wanted).
 from __future__ import annotations
 
 import dataclasses
+import errno
 import os
 import struct
 import zipfile
@@ -142,12 +143,25 @@ class Checkpoint:
     def load(cls, path: str | os.PathLike) -> Checkpoint:
         """Read a checkpoint written by ``save`` (no lock needed: ``save`` replaces the file atomically).
 
+        ``path``: the checkpoint file, or a run directory (``jb.run``'s ``out``),
+        whose ``checkpoint.npz`` is read.
+
         Raises:
-            FileNotFoundError: no file at ``path``.
+            FileNotFoundError: no file at ``path``, or a directory without
+                ``checkpoint.npz`` (the message names the file it looked for).
             ValueError: naming ``path``, for a file that is cut short or damaged, is
                 not a jaxbill checkpoint, or was written in another checkpoint format.
         """
         path = Path(path)
+        if path.is_dir():
+            inside = path / CHECKPOINT_NAME
+            if not inside.is_file():
+                processes = sorted(p.name for p in path.glob("process_*") if (p / CHECKPOINT_NAME).is_file())
+                where = f" (each process of a distributed run wrote its own: {processes[0]}/...)" if processes else ""
+                raise FileNotFoundError(
+                    errno.ENOENT, f"{path} is a directory without a run's {CHECKPOINT_NAME}{where}", str(inside)
+                )
+            path = inside
         what = "a jaxbill checkpoint (an .npz archive written by jb.run)"
         try:
             with np.load(path, allow_pickle=False) as f:

@@ -559,13 +559,30 @@ def _resolve_out(out) -> Path | None:
     return path
 
 
-def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, engine) -> Checkpoint | None:
-    if resume is not True and out_dir is not None and (out_dir / CHECKPOINT_NAME).exists():
-        raise ValueError(f"{out_dir} already holds a run; pass resume=True to continue it, or choose another directory")
+def _same_checkpoint(a: Checkpoint, b: Checkpoint) -> bool:
+    """Whether two checkpoints are the same point of the same run, field by field (arrays bitwise)."""
+
+    def same(x, y) -> bool:
+        if isinstance(x, tuple) or isinstance(y, tuple):
+            return isinstance(x, tuple) and isinstance(y, tuple) and len(x) == len(y) and all(map(same, x, y))
+        if x is None or y is None:
+            return x is None and y is None
+        return bool(np.array_equal(np.asarray(x), np.asarray(y)))
+
+    return all(same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(Checkpoint))
+
+
+def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, engine) -> tuple[Checkpoint | None, bool]:
+    """The checkpoint a run starts from (``None``: collision 0) and whether it continues the run in ``out_dir``."""
+    held = out_dir is not None and (out_dir / CHECKPOINT_NAME).exists()
     if resume is None or resume is False:
-        return None
+        if held:
+            raise ValueError(
+                f"{out_dir} already holds a run; pass resume=True to continue it, or choose another directory"
+            )
+        return None, False
     if resume is True:
-        if out_dir is None or not (out_dir / CHECKPOINT_NAME).exists():
+        if out_dir is None or not held:
             raise ValueError(f"resume=True continues the run in out; there is no {CHECKPOINT_NAME} in {out_dir}")
         source = out_dir / CHECKPOINT_NAME
         checkpoint = Checkpoint.load(source)
@@ -575,6 +592,18 @@ def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, en
         source, checkpoint = resume, Checkpoint.load(resume)
     else:
         raise ValueError(f"resume must be None, True, a Checkpoint or a checkpoint path; got {resume!r}")
+    continues = resume is True
+    if held and not continues and out_dir is not None:
+        # A checkpoint passed into the directory of its own run continues that run, as resume=True would;
+        # any other would mix two runs' records in one directory.
+        own = Checkpoint.load(out_dir / CHECKPOINT_NAME)
+        if not _same_checkpoint(own, checkpoint):
+            raise ValueError(
+                f"resume: {source} is not the checkpoint of the run in {out_dir} (that run is at collision "
+                f"{own.collisions}, {source} at {checkpoint.collisions}): pass resume=True to continue the run "
+                f"in {out_dir}, or choose another directory to continue from {source}"
+            )
+        continues = True
     if checkpoint.state0.shape != state0.shape or not np.array_equal(checkpoint.state0, state0):
         raise ValueError(f"resume: {source} belongs to a run from other initial states (state0 differs)")
     same_parameters = len(checkpoint.scene_parameters) == len(scene_parameters(scene)) and all(
@@ -597,7 +626,7 @@ def _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, en
         raise ValueError(
             f"resume: the run in {out_dir} records {checkpoint.record!r}; this call asks for {record_signature!r}"
         )
-    return checkpoint
+    return checkpoint, continues
 
 
 class _Records:
@@ -784,9 +813,11 @@ def run(
             collision, and turns ``SIGTERM`` and ``SIGINT`` (Ctrl-C) into a stop at
             the end of the chunk in flight, after a checkpoint (README, "Long runs").
         resume: continue a run: ``True`` (the run in ``out``), a ``Checkpoint``
-            (e.g. ``previous.checkpoint``) or a checkpoint path. ``scene`` and
-            ``state0`` must be the run's own. The result is bitwise what the
-            uninterrupted run gives.
+            (e.g. ``previous.checkpoint``), a checkpoint path or a run
+            directory (its ``checkpoint.npz``). ``scene`` and ``state0`` must be
+            the run's own. Into an ``out`` that holds a run, only that run's
+            own checkpoint continues (as ``True`` does). The result is bitwise
+            what the uninterrupted run gives.
         devices: where a batch runs: ``None`` (every JAX device, of every process),
             a list of devices, or a ``Mesh`` (see ``jb.orbit_mesh``). A single
             orbit runs on the default device.
@@ -809,7 +840,7 @@ def run(
         ValueError: for bad ``state0``/``n`` (as ``jb.orbit``), an unknown
             ``record``, ``every`` with a record other than ``"states"``,
             ``chunk < 1``, an ``out`` that is a file or already holds a run
-            (without ``resume``), an ``out`` another ``jb.run`` is writing (the
+            (unless ``resume`` continues it), an ``out`` another ``jb.run`` is writing (the
             message names the process), a checkpoint of another run, or a
             checkpoint or record file that is damaged (the message names it).
         OSError: (``ENOSPC``) before the first collision, if the records do
@@ -852,22 +883,23 @@ def _run_chunks(
         record_signature = f"section/{point.shape}"
     else:
         record_signature = "final" if kind == "final" else f"states/every={every}"
-    checkpoint = _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, engine)
+    checkpoint, continues = _starting_checkpoint(resume, out_dir, scene, state0, n, record_signature, engine)
     first = checkpoint.collisions if checkpoint else 0
 
     row_bytes = (state0.shape[-1] + 2) * 8 if kind == "states" else ((point.size + 2) * 8 if point else 0)
     # Every process of a jax.distributed run must run the same chunks: no growth there.
     grows = chunk is None and kind == "final" and jax.process_count() == 1
+    sized_lanes = max(engine.lanes, 1)  # an empty batch (no lanes, nothing to compute) is sized as one lane
     if chunk is None:
-        chunk = _default_chunk(kind, engine.lanes, every, row_bytes)
+        chunk = _default_chunk(kind, sized_lanes, every, row_bytes)
     rows = -(-chunk // every)  # records per orbit per chunk, whatever the phase
     if kind == "section":
-        fitting = max(1, RECORD_BYTES_PER_CHUNK // (engine.lanes * row_bytes))
+        fitting = max(1, RECORD_BYTES_PER_CHUNK // (sized_lanes * row_bytes))
         rows = min(chunk, section.capacity or min(fitting, max(1, chunk // 8)))
     plan = _Plan(kind, every, rows, section)
 
     carry = engine.initial_carry(checkpoint)
-    own_checkpoint = checkpoint if (resume is True) else None
+    own_checkpoint = checkpoint if continues else None
     lead = engine.orbit_index.size if engine.orbit_index is not None else 1  # set for a batch only
     # The old and the new checkpoint side by side while one replaces the other.
     checkpoint_bytes = 2 * (state0.nbytes + lead * (state0.shape[-1] + len(CONTACT_CODES) + 5) * 8) + (1 << 16)
