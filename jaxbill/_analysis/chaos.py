@@ -240,7 +240,7 @@ def table_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=N
     shell's circle at fixed ``L``, weighted as ``sample_energy_shell`` says.
     Returns ``(states (k, 6), weights (k,))``.
     """
-    turning = scene.kind == "rotor"
+    turning = scene.body.kind == "rotor"
     if angular_momentum is not None and not (turning and scene.conserves_angular_momentum):
         raise ValueError(
             f"angular_momentum: {type(scene).__name__} conserves none "

@@ -130,8 +130,8 @@ def birkhoff_state(scene, s, p, energy=0.5, arm_angle=0.0, spin=0.0) -> jax.Arra
     ty = _by_piece(table, piece, [t[1] for t in tangents])
     out_x, out_y = ty, -tx  # the outward normal: a quarter turn clockwise of the anticlockwise tangent
     direction = jnp.arctan2(out_y, out_x) + arm_angle
-    turning = scene.kind == "rotor"
-    alpha = body.orientation_for(direction) if scene.kind != "point" else jnp.zeros_like(s)
+    turning = scene.body.kind == "rotor"
+    alpha = body.orientation_for(direction) if scene.body.kind != "point" else jnp.zeros_like(s)
     offsets = scene.contact_offsets_at(alpha)  # per wall, the first contact's offset
     rx = _by_piece(table, piece, [wall[0][0] for wall in offsets])
     ry = _by_piece(table, piece, [wall[0][1] for wall in offsets])
@@ -153,7 +153,7 @@ def birkhoff_state(scene, s, p, energy=0.5, arm_angle=0.0, spin=0.0) -> jax.Arra
 def floor_section(scene, states, contacts=None) -> jax.Array:
     """``[alpha mod (2 pi / n), p]`` ``(..., 2)`` at collisions with the floor, NaN at others (module docstring)."""
     states = as_states(scene, states)
-    if scene.kind != "rotor":
+    if scene.body.kind != "rotor":
         raise ValueError("the floor section needs a turning body: one that does not turn only bounces")
     gap = touching_gap(scene, states, contacts)
     on_floor = gap < scene.body.contact_count
@@ -247,7 +247,7 @@ def draw_orbit(ax, scene, state0, orb, color, *, body_every: int = 1):
     wall = table_outline(scene, (span[0] - 1.0, span[1] + 1.0))
     ax.plot(wall[:, 0], wall[:, 1], color="k", lw=1.2)
     ax.plot(path[:, 0], path[:, 1], color=color, lw=0.8, alpha=0.9)
-    if scene.kind != "point":
+    if scene.body.kind != "point":
         for state in states[::body_every]:
             shape = outline(scene, state)
             ax.plot(shape[:, 0], shape[:, 1], color="0.3", lw=0.9, alpha=0.55)

@@ -173,13 +173,10 @@ class Body(eqx.Module):
         if offsets is None:
             zero = jnp.zeros_like(cx)
             return (along_path(piece, cx, cy, vx, vy, *((zero, zero) if curvatures else ())),)
-        out = []
-        for rx, ry in offsets:
-            tx, ty = self.turn_vector(rx, ry)
-            px, py, ex, ey = cx + rx, cy + ry, vx + omega * tx, vy + omega * ty
-            acceleration = (-(omega * omega) * rx, -(omega * omega) * ry) if curvatures else ()
-            out.append(along_path(piece, px, py, ex, ey, *acceleration))
-        return tuple(out)
+        return tuple(
+            piece.along_flight(cx, cy, rx, ry, vx, vy, *self.turn_vector(rx, ry), omega, curvatures)
+            for rx, ry in offsets
+        )
 
     def flight_bounds(self, piece: Piece, motion: Motion) -> tuple:
         """``(lower_curv, upper_curv, jerk or None)`` of every contact gap with ``piece`` along the flight."""

@@ -114,6 +114,16 @@ class Piece(eqx.Module):
         never = jnp.full(jnp.shape(motion.cx), jnp.inf)
         return never, never
 
+    def along_flight(self, cx, cy, rx, ry, vx, vy, tx, ty, omega, curvature: bool) -> tuple:
+        """The gap of the contact point ``c + r`` of a body moving at ``(v, omega)`` and its time derivatives:
+        ``(g, g')``, or ``(g, g', g'')`` with ``curvature``. ``t = dr/dalpha`` (the contact moves at
+        ``v + omega t`` and accelerates at ``-omega^2 r``)."""
+        px, py, ex, ey = cx + rx, cy + ry, vx + omega * tx, vy + omega * ty
+        if not curvature:
+            return along_path(self, px, py, ex, ey)
+        spin2 = omega * omega
+        return along_path(self, px, py, ex, ey, -spin2 * rx, -spin2 * ry)
+
     def exit_time(self, px, py, vx, vy):
         """First ``t >= 0`` at which the point ``P + v t`` reaches the wall moving outwards (``inf``: never).
 

@@ -49,6 +49,18 @@ class DiscWall(Piece):
     def gap_scale(self):
         return self.radius**2
 
+    def along_flight(self, cx, cy, rx, ry, vx, vy, tx, ty, omega, curvature: bool):
+        # |c + r|^2 = |c|^2 + 2 c . r + |r|^2 term by term: forming c + r first would keep a short
+        # offset only to the rounding of c (a stick of half-length 1e-6 in a circle of radius 2 to
+        # 1e-10 of its own length). r . t = 0 for a rigid turn.
+        cross = cx * rx + cy * ry
+        gap = (self.radius**2 - (rx * rx + ry * ry) - (cx * cx + cy * cy)) - 2.0 * cross
+        slope = -2.0 * (cx * vx + cy * vy) - 2.0 * ((vx * rx + vy * ry) + omega * (cx * tx + cy * ty))
+        if not curvature:
+            return gap, slope
+        curve = -2.0 * (vx * vx + vy * vy) - 2.0 * omega * (2.0 * (vx * tx + vy * ty) - omega * cross)
+        return gap, slope, curve
+
     def _centre_reach(self, motion: Motion):
         """A bound on ``|c(t)|`` until the first contact (module docstring)."""
         start = jnp.sqrt(motion.cx * motion.cx + motion.cy * motion.cy)
