@@ -474,7 +474,7 @@ class _PlainProblem(eqx.Module):
 
     Unknowns ``zeta``: the dynamical components (``scene.dynamical_indices``)
     of ``s`` relative to the start ``s_1``, in units of the table's length
-    ``sqrt(gap_scale)`` (the first half of the state, ``q``) and of the speed
+    ``length_scale`` (the first half of the state, ``q``) and of the speed
     ``sqrt(2 E0 / M)`` (the second half, ``qdot``); the others are held.
     Residuals: ``map^p(s) - s`` on the dynamical components (angles,
     ``scene.periodic_angles``, wrapped), ``E(s)/E0 - 1`` and the gap of the
@@ -490,7 +490,7 @@ class _PlainProblem(eqx.Module):
 
     def scales(self) -> jax.Array:
         half = self.scene.state_size // 2
-        length = jnp.sqrt(self.scene.gap_scale)
+        length = self.scene.length_scale
         speed = jnp.sqrt(2.0 * self.energy / self.scene.mass)
         full = jnp.concatenate([jnp.full((half,), length), jnp.full((half,), speed)])
         return full[jnp.asarray(self.scene.dynamical_indices)]
@@ -543,7 +543,10 @@ def _plain_periodic_orbit(
     """
     del angular_momentum, rotation, pin_l, pin_rotation  # nothing is conserved but E; no rotation
     start, _, first_contact = _collide(scene, guess)
-    contact_index = jnp.where(first_contact == -1, 1, 0)
+    # The gap of the contact that touched (the scene's contact code of each gap, ``gap_codes``).
+    contact_index = jnp.zeros((), jnp.int32)
+    for gap, code in enumerate(scene.gap_codes):
+        contact_index = jnp.where(first_contact == code, jnp.int32(gap), contact_index)
     problem = _PlainProblem(scene, start, energy, contact_index, p)
     k = len(scene.dynamical_indices)
     zeta, _ = _solve(problem, jnp.zeros(k), max_steps)
@@ -575,7 +578,7 @@ def _plain_periodic_orbit(
         largest = jnp.max(jnp.abs(multipliers))
         stability = jnp.where(largest > 1.0 + parabolic_tol, HYPERBOLIC, ELLIPTIC).astype(jnp.int32)
     speed = jnp.sqrt(2.0 * energy / scene.mass)
-    grazing = jnp.min(flights) <= _MIN_FLIGHT * jnp.sqrt(scene.gap_scale) / speed
+    grazing = jnp.min(flights) <= _MIN_FLIGHT * scene.length_scale / speed
     single = jnp.all((contacts != NO_CONTACT) & (contacts != SEVERAL_CONTACTS))
     single &= (first_contact != NO_CONTACT) & (first_contact != SEVERAL_CONTACTS) & (contacts[-1] == first_contact)
     all_states = jnp.concatenate([s0[None], states[:-1]])
