@@ -33,7 +33,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from jaxbill._analysis.chaos import table_shell_candidates
 from jaxbill._engine.first_root import RootBounds, first_smallest, select
 from jaxbill._engine.step import components, computed_once, cos_sin, stacked, wrapped_angle
 from jaxbill._engine.validation import (
@@ -52,6 +51,7 @@ from jaxbill._scenes.protocols import (
     chosen_section,
     component,
 )
+from jaxbill._scenes.shell_sampling import table_shell_candidates
 from jaxbill._scenes.tables.base import Motion, Table
 
 # The contact code of gap g (0 and 2 are taken: no contact, several at once).

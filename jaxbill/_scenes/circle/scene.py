@@ -20,7 +20,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from jaxbill._analysis.chaos import circle_shell_candidates
 from jaxbill._check.checker import ColumnFlight
 from jaxbill._engine.step import cos_sin
 from jaxbill._engine.validation import (
@@ -43,6 +42,7 @@ from jaxbill._scenes.circle.sections import (
     section_state,
 )
 from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, chosen_section
+from jaxbill._scenes.shell_sampling import circle_shell_candidates
 from jaxbill._scenes.tables.circle import Circle
 
 # Orbits of a batch on a CPU run in lanes of this many, one lane after another: a

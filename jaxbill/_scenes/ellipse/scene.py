@@ -53,7 +53,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from jaxbill._analysis.chaos import table_shell_candidates
 from jaxbill._check.checker import ColumnFlight
 from jaxbill._engine.step import components, cos_sin, searched_contact_time, stacked
 from jaxbill._engine.validation import (
@@ -75,6 +74,7 @@ from jaxbill._scenes.ellipse.sections import (
     ellipse_section_state,
 )
 from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, chosen_section
+from jaxbill._scenes.shell_sampling import table_shell_candidates
 from jaxbill._scenes.tables.ellipse import Ellipse
 
 KINDS = ("rotor", "static", "point")
