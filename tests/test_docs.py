@@ -344,6 +344,28 @@ def test_the_scenes_page_shows_the_user_s_members_and_the_scene_page_the_engine_
     assert not untyped, untyped
 
 
+BODIES_AND_TABLES = (
+    *("PointBody", "Dumbbell", "PolygonBody", "EllipseBody"),
+    *("Circle", "Ellipse", "Stadium", "Polygon", "Strip", "ConvexTable"),
+)
+
+
+def test_the_bodies_page_shows_the_user_s_members_and_the_extending_page_the_scene_s(site):
+    """A composed scene's page shows what a user calls, not what the engine calls; a body's or a table's shows
+    none of its answers to the scene, which the bases on the page for extending show."""
+    hooks = _load_hooks()
+    page = (site / "api" / "bodies" / "index.html").read_text()
+    scene = set(re.findall(r'id="jaxbill\.BodyInTable\.(\w+)"', page))
+    assert {"gaps", "energy", "section", "contact_points", "gap_codes"} <= scene, scene
+    assert not scene & set(hooks.ENGINE_MEMBERS), scene & set(hooks.ENGINE_MEMBERS)
+    parts = set(re.findall(r'id="jaxbill\.(?:' + "|".join(BODIES_AND_TABLES) + r')\.(\w+)"', page))
+    assert "vertices" in parts and not parts & set(hooks.PART_MEMBERS), parts
+    extending = (site / "api" / "extending" / "index.html").read_text()
+    bases = set(re.findall(r'id="jaxbill\.(?:Body|Table|Piece)\.(\w+)"', extending))
+    assert {"offsets", "turn_vector", "inner_radius2", "pieces", "curvature_bounds", "quiet_interval"} <= bases
+    assert {"exit_time", "impulse_normal", "boundary_coordinate"} <= bases
+
+
 def test_the_api_reference_has_no_page_of_leftovers(site):
     assert not (site / "api" / "more" / "index.html").exists()
     runs = (site / "api" / "runs" / "index.html").read_text()
