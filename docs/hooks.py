@@ -5,9 +5,10 @@ and ``jaxbill.studies``) gets a ``::: name`` block, rendered by mkdocstrings fro
 its docstring, on one of the pages of ``API_PAGES`` (``MODULE_PAGES``). A name no
 page lists, a public class or function without a docstring of its own, or a
 constant without an entry in ``CONSTANTS`` is logged as a warning, which
-``mkdocs build --strict`` turns into a failed build. The scenes' page leaves out
+``mkdocs build --strict`` turns into a failed build. The scenes' pages leave out
 what a scene implements for the engine (``ENGINE_MEMBERS``), documented once on
-the page for adding a scene.
+the page for adding a scene, and what a body or a table answers its scene
+(``PART_MEMBERS``), documented with their bases on the page for extending.
 
 Maths is typeset in the browser by the KaTeX bundled under ``docs/assets/``
 (``docs/assets/render-maths.js``), from formulas marked ``\\( ... \\)`` or
@@ -46,6 +47,33 @@ API_PAGES = {
         "answers the engine and the analyses (the root search, the impulse, the checks, the "
         "charts) is on the page for [adding a scene](../how-to/new-scene.md#4-the-protocols-member-by-member).",
         ["StickInCircle", "StickInEllipse", "StickBetweenWalls2D", "StickBetweenWalls3D"],
+    ),
+    "api/bodies.md": (
+        "Bodies and tables",
+        "A scene composed of any rigid body in any convex table, `jb.BodyInTable(body, table)`: the scene, "
+        "the bodies and the tables ([concepts](../concepts.md#compositions-a-body-in-a-table): the state "
+        "layout, the gap numbering, the contact codes). What a body or a table answers the scene, and the "
+        "walls tables are made of, are on the page for [extending](extending.md).",
+        [
+            "BodyInTable",
+            "PointBody",
+            "Dumbbell",
+            "PolygonBody",
+            "EllipseBody",
+            "Circle",
+            "Ellipse",
+            "Stadium",
+            "Polygon",
+            "Strip",
+            "ConvexTable",
+        ],
+    ),
+    "api/extending.md": (
+        "Extending: bodies, tables, walls",
+        "The bases a new body or table subclasses, and the smooth walls (pieces) tables are made of, with "
+        "every member the scene asks of them. Step by step, with the tests each needs: "
+        "[a new table](../how-to/new-table.md), [a new body](../how-to/new-body.md).",
+        ["Body", "Table", "Piece", "Motion", "DiscWall", "EllipseWall", "HalfPlane", "CapsuleWall", "FunctionWall"],
     ),
     "api/orbits.md": (
         "Orbits and invariants",
@@ -213,16 +241,58 @@ ENGINE_MEMBERS = (
     "end_approach_speeds",
     "end_gaps_and_speeds",
     "vertical_profile",
+    # a composed scene's own steps of the collision (jaxbill._scenes.body_in_table)
+    "flight_components",
+    "contacts",
+    "resolve",
+    "contact_offsets_at",
 )
-SCENE_PAGE = "api/scenes.md"
+# What a body or a table answers its scene rather than its user: kept off the page of
+# bodies and tables, documented with the bases (Body, Table) on the page for extending.
+PART_MEMBERS = (
+    "check",
+    "parameters_are_valid",
+    "offsets",
+    "turn_vector",
+    "inner_radius2",
+    "mass_ratio",
+    "energy",
+    "spin_term",
+    "outline",
+    "turn_symmetry",
+    "orientation_for",
+    "supports",
+    "contact_points",
+    "gaps_along",
+    "flight_bounds",
+    "bounds_jerk",
+    "quiet_interval",
+    "exit_times",
+    "has_closed_form",
+    "gap_scale",
+    "boundary_offset",
+    "boundary_coordinate",
+    "boundary_point",
+)
+# The pages a user reads for the scenes themselves: the members above stay off them.
+USER_SCENE_PAGES = ("api/scenes.md", "api/bodies.md")
+
+
+def _hidden_members(value, page: str) -> tuple[str, ...]:
+    """What a block on ``page`` leaves out: a body's or table's answers to its scene, a scene's to the engine."""
+    if page not in USER_SCENE_PAGES or not inspect.isclass(value):
+        return ()
+    from jaxbill import Body, Table
+
+    return PART_MEMBERS if issubclass(value, Body | Table) else ENGINE_MEMBERS
 
 
 def _block(name: str, value, page: str = "") -> str:
     if name in CONSTANTS:
         return f"### `jaxbill.{name}`\n\n`{value!r}`\n\n{CONSTANTS[name]}\n"
-    if page == SCENE_PAGE:
-        hidden = "|".join(ENGINE_MEMBERS)
-        return f'::: jaxbill.{name}\n    options:\n      filters: ["!^_", "!^({hidden})$"]\n'
+    hidden = _hidden_members(value, page)
+    if hidden:
+        return f'::: jaxbill.{name}\n    options:\n      filters: ["!^_", "!^({"|".join(hidden)})$"]\n'
     return f"::: jaxbill.{name}\n"
 
 

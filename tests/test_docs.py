@@ -10,6 +10,7 @@ blocks of the getting-started page run either way.
 
 from __future__ import annotations
 
+import ast
 import importlib.util
 import json
 import logging
@@ -21,6 +22,7 @@ import sys
 from html.parser import HTMLParser
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 
@@ -64,6 +66,88 @@ def test_getting_started_python_blocks_run(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "orbit.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert namespace["batch"].state.shape == (2, 1000, 6)
     assert namespace["new_states"].shape == (3, 6)
+
+
+def _run_blocks(blocks: list[str], where: str, capsys) -> tuple[dict, list[str]]:
+    """Run code blocks in order in one namespace, as a reader would: ``(namespace, what each block printed)``."""
+    namespace: dict = {}
+    printed = []
+    for number, block in enumerate(blocks, 1):
+        try:
+            exec(compile(block, f"{where}, python block {number}", "exec"), namespace)
+        except Exception as error:  # report which block broke, with the error
+            pytest.fail(f"python block {number} of {where} raised {type(error).__name__}: {error}")
+        printed.append(capsys.readouterr().out)
+    return namespace, printed
+
+
+def test_the_composition_examples_of_the_readme_and_the_home_page_run(capsys):
+    """The triangle in the stadium: its energy is conserved over the orbit and its largest exponent is positive
+    (the stadium is chaotic); the home page prints what the README prints."""
+    namespace, printed = _run_blocks(_code_blocks(ROOT / "README.md", "python"), "README.md", capsys)
+    scene, state0 = namespace["scene"], namespace["state0"]
+    assert isinstance(scene, jb.BodyInTable)
+    energy, exponent = (float(v) for v in printed[-1].split())
+    assert energy == pytest.approx(float(scene.energy(state0)), rel=1e-12)
+    assert 0.1 < exponent < 100.0
+    assert set(np.unique(np.asarray(namespace["orb"].contact)).tolist()) <= set(scene.gap_codes)
+    _, home = _run_blocks(_code_blocks(DOCS / "index.md", "python"), "index.md", capsys)
+    assert home[-1] == printed[-1]
+
+
+# a block that quotes the library's code: its first line names the file
+QUOTE_MARK = re.compile(r"^# from (jaxbill/\S+\.py)\n")
+
+
+def _unquoted_line(path: str, block: str) -> str | None:
+    """The first line of ``block`` that ``path`` does not have, in that order (lines may be left out); None."""
+    source = [line.strip() for line in (ROOT / path).read_text().splitlines()]
+    position = 0
+    for line in (line.strip() for line in block.splitlines()):
+        if not line:
+            continue
+        if line not in source[position:]:
+            return line
+        position = source.index(line, position) + 1
+    return None
+
+
+@pytest.mark.parametrize("page", ["how-to/new-table.md", "how-to/new-body.md"])
+def test_the_how_to_pages_quote_the_code_as_it_is(page):
+    """A block marked ``# from <file>`` shows that file's lines in their order: the pages walk through the code as
+    it is, not as it was."""
+    quotes = [QUOTE_MARK.match(b) for b in _code_blocks(DOCS / page, "python")]
+    quotes = [(m[1], b[m.end() :]) for m, b in zip(quotes, _code_blocks(DOCS / page, "python")) if m]
+    assert len(quotes) >= 5, page
+    for path, block in quotes:
+        missing = _unquoted_line(path, block)
+        assert missing is None, f"{page} quotes {path} with a line it does not have there: {missing!r}"
+
+
+def test_the_quote_check_sees_a_changed_line():
+    block = "    def gap(self, x, y):\n        qx, qy = self._offset(x, y)\n        return self.radius**2 - qx * qx\n"
+    assert _unquoted_line("jaxbill/_scenes/tables/stadium.py", block) == "return self.radius**2 - qx * qx"
+    swapped = "    def gradient(self, x, y):\n    def gap(self, x, y):\n"
+    assert _unquoted_line("jaxbill/_scenes/tables/stadium.py", swapped) == "def gap(self, x, y):"
+
+
+@pytest.mark.parametrize("page", ["concepts.md", "how-to/new-table.md", "how-to/new-body.md"])
+def test_the_composition_pages_examples_run_and_say_what_they_do(page, capsys):
+    """The runnable blocks (not the quotes): an orbit conserves its energy and touches only the scene's gaps; the
+    gap names a comment shows are the scene's."""
+    blocks = [b for b in _code_blocks(DOCS / page, "python") if not QUOTE_MARK.match(b)]
+    assert blocks, page
+    namespace, _ = _run_blocks(blocks, page, capsys)
+    scene = namespace["scene"]
+    if "orb" in namespace:
+        orb = namespace["orb"]
+        np.testing.assert_allclose(
+            np.asarray(jb.energy(scene, orb.state)), float(jb.energy(scene, namespace["state0"])), rtol=1e-12
+        )
+        assert set(np.unique(np.asarray(orb.contact)).tolist()) <= set(scene.gap_codes)
+    shown = re.search(r"scene\.gap_names +# (\(.*\))", "\n".join(blocks))
+    if shown:
+        assert scene.gap_names == ast.literal_eval(shown[1])
 
 
 def test_getting_started_commands_are_the_readmes():
@@ -258,6 +342,28 @@ def test_the_scenes_page_shows_the_user_s_members_and_the_scene_page_the_engine_
     assert len(rows) >= 17
     untyped = [name for name, cell in rows if not cell.strip()]
     assert not untyped, untyped
+
+
+BODIES_AND_TABLES = (
+    *("PointBody", "Dumbbell", "PolygonBody", "EllipseBody"),
+    *("Circle", "Ellipse", "Stadium", "Polygon", "Strip", "ConvexTable"),
+)
+
+
+def test_the_bodies_page_shows_the_user_s_members_and_the_extending_page_the_scene_s(site):
+    """A composed scene's page shows what a user calls, not what the engine calls; a body's or a table's shows
+    none of its answers to the scene, which the bases on the page for extending show."""
+    hooks = _load_hooks()
+    page = (site / "api" / "bodies" / "index.html").read_text()
+    scene = set(re.findall(r'id="jaxbill\.BodyInTable\.(\w+)"', page))
+    assert {"gaps", "energy", "section", "contact_points", "gap_codes"} <= scene, scene
+    assert not scene & set(hooks.ENGINE_MEMBERS), scene & set(hooks.ENGINE_MEMBERS)
+    parts = set(re.findall(r'id="jaxbill\.(?:' + "|".join(BODIES_AND_TABLES) + r')\.(\w+)"', page))
+    assert "vertices" in parts and not parts & set(hooks.PART_MEMBERS), parts
+    extending = (site / "api" / "extending" / "index.html").read_text()
+    bases = set(re.findall(r'id="jaxbill\.(?:Body|Table|Piece)\.(\w+)"', extending))
+    assert {"offsets", "turn_vector", "inner_radius2", "pieces", "curvature_bounds", "quiet_interval"} <= bases
+    assert {"exit_time", "impulse_normal", "boundary_coordinate"} <= bases
 
 
 def test_the_api_reference_has_no_page_of_leftovers(site):

@@ -79,6 +79,13 @@ class BodyInTable(eqx.Module):
     their kind (a point, a body that never turns) is static, so a scene
     compiles only what it needs.
 
+    A state is float64 ``[x, y, alpha, vx, vy, omega]``, shape ``(6,)`` (or
+    ``(..., 6)``): the centre of mass (length), the orientation (radians), and
+    their rates. The body's ``K`` contacts with the table's ``P`` walls are the
+    ``G = P K`` gaps ``g = i K + k`` (contact ``k`` on wall ``i``);
+    ``Orbit.contact`` is ``3 + g`` (``gap_codes``), ``2`` for several at once,
+    ``0`` for none.
+
     Raises:
         TypeError: for a body or table of another type.
         ValueError: for a body that cannot touch one of the table's walls (the

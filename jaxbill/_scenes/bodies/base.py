@@ -61,6 +61,16 @@ class Body(eqx.Module):
 
     ``kind`` (static) is ``"point"``, ``"static"`` (infinite inertia) or
     ``"rotor"``; a scene compiles only the code of its kind.
+
+    A body with contact points fixed in its frame gives the fields ``mass``
+    (``M > 0``), ``inertia`` (``I`` about the centre of mass, mass times length
+    squared; ``inf`` for ``"static"``) and ``kind``, and the abstract members:
+    ``contact_names`` (``K`` names), ``radius`` (length), ``offsets(cos, sin)``
+    (the ``K`` offsets ``r_k = R(alpha) b_k``, lengths), ``check`` and
+    ``parameters_are_valid``; ``inner_radius2`` (area), ``diameter`` and
+    ``width`` (lengths) sharpen the search and the fit check. A smooth body
+    (the coin) also replaces the contact methods (``contact_points``,
+    ``gaps_along``, ``flight_bounds``, ``supports``).
     """
 
     mass: eqx.AbstractVar[jax.Array]

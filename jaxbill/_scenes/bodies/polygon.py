@@ -36,7 +36,8 @@ class PolygonBody(Body):
             masses ``M/n`` at the corners), a number ``> 0`` (with the lamina's
             centre of mass), or ``float('inf')`` (never turns; ``omega`` must be 0).
 
-    The corners are leaves (differentiable); their number is static.
+    The corners are leaves (differentiable); their number is static. Contact
+    ``k`` is corner ``k + 1`` in the order given (``contact_names``).
     """
 
     xs: tuple

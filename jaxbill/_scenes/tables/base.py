@@ -228,6 +228,11 @@ class Table(eqx.Module):
 
     Subclasses hold their parameters as leaves and build ``pieces`` from them
     (a property, so that a traced or vmapped table builds traced pieces).
+    They give ``pieces`` and ``piece_names`` (one name per piece, in the same
+    order: wall ``i`` of the gap numbering), ``size`` (length) and ``extent``
+    (four lengths), and where they can ``check``, ``parameters_are_valid``,
+    ``diameter`` and ``width`` (lengths: a body that cannot fit is refused)
+    and ``section_names``.
     """
 
     name: ClassVar[str] = "the table"

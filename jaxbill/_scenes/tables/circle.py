@@ -124,7 +124,7 @@ class DiscWall(Piece):
 
 
 class Circle(Table):
-    """The circle of radius ``R`` about the origin, ``|P| <= R``.
+    """The circle of radius ``R`` about the origin, ``|P| <= R``: one wall, the gap ``R^2 - |P|^2`` (area).
 
     Args:
         R: the radius, ``R > 0`` (length).

@@ -315,7 +315,7 @@ def _unit_disc_crossing(px, py, wx, wy):
 
 
 class Ellipse(Table):
-    """The ellipse ``x^2/a^2 + y^2/b^2 <= 1``.
+    """The ellipse ``x^2/a^2 + y^2/b^2 <= 1``: one wall, the gap ``a b - P^T D P`` (area), ``D = diag(b/a, a/b)``.
 
     Args:
         a: the semi-axis along x, ``a > 0`` (length).

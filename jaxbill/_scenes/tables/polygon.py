@@ -29,7 +29,10 @@ class Polygon(Table):
         vertices: ``(n, 2)`` corners in anticlockwise order (length), ``n >= 3``,
             a strictly convex polygon (``Polygon.regular`` builds a regular one).
 
-    The corners are leaves (differentiable); their number is static.
+    The corners are leaves (differentiable); their number is static. Wall
+    ``j`` (named ``side j+1``) runs from corner ``j`` to corner ``j + 1``
+    (mod ``n``); its gap is the distance from that side's line (length), and
+    the gap unit (``gap_scale``) the largest distance of a corner from the origin.
     """
 
     xs: tuple

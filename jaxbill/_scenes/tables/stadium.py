@@ -41,7 +41,15 @@ def _crossings(px, py, vx, vy, half_length, radius) -> list:
 
 
 class CapsuleWall(Piece):
-    """The wall at distance ``radius`` from the segment ``(-half_length, 0)``-``(half_length, 0)``."""
+    """The wall at distance ``radius`` from the segment ``(-half_length, 0)``-``(half_length, 0)``.
+
+    Leaves ``half_length >= 0`` and ``radius > 0`` (lengths, shape ``()``).
+    The gap is ``radius^2 - |q|^2`` (area), ``q = P - foot(P)`` the point's
+    offset from its nearest point of the segment: ``grad g = -2 q`` and
+    ``Hess g = -2 diag([|x| > half_length], 1)``, between ``-2`` and ``0``. The
+    gap is once continuously differentiable (its curvature jumps where the flat
+    sides meet the half-discs): it bounds ``g''``, not ``g'''``.
+    """
 
     half_length: jax.Array
     radius: jax.Array
@@ -139,7 +147,7 @@ class Stadium(Table):
     """Bunimovich's stadium: two half-discs of radius ``radius`` joined by flat sides of length ``2 half_length``.
 
     Args:
-        half_length: half the length of the flat sides, ``>= 0`` (0: the circle).
+        half_length: half the length of the flat sides, ``>= 0`` (length; 0: the circle).
         radius: the half-discs' radius, ``> 0`` (length).
     """
 
