@@ -47,6 +47,7 @@ from jaxbill._scenes.protocols import (
     NO_CONTACT,
     SEVERAL_CONTACTS,
     WALL_TOLERANCE,
+    RigidBodyColumn,
     SectionChart,
     chosen_section,
     component,
@@ -487,6 +488,25 @@ class BodyInTable(eqx.Module):
         circle) (``SamplesStates``): ``(states (k, 6), weights (k,))``, every gap above ``margin`` times its unit
         (``jb.sample_energy_shell`` loops over it)."""
         return table_shell_candidates(self, rng, count, energy, angular_momentum, margin)
+
+    # -- the independent checker (jb.check) ---------------------------------------------------
+
+    def checker_flight(self) -> RigidBodyColumn:
+        """The geometry ``jb.check`` flies the body in (``HasCheckerFlight``): its gaps as walls of the column
+        in ``(x, y, sqrt(I/M) alpha)``; the checker bounds their curvature and reflects about their gradients
+        itself, never asking for this scene's bounds, collision times or impulses."""
+        turning = self.kind == "rotor"
+        scale = float(jnp.sqrt(self.inertia / self.mass)) if turning else 1.0
+        return RigidBodyColumn(
+            gaps=self.gaps,
+            gap_codes=self.gap_codes,
+            scale=scale,
+            frozen=self.kind == "static",
+            point=self.kind == "point",
+            length=float(self.length_scale),
+            gap_unit=float(self.gap_scale),
+            extent=tuple(float(e) for e in self.table.extent),  # type: ignore[arg-type]
+        )
 
     # -- derivatives (jaxbill._engine.tangent) ----------------------------------------------
 

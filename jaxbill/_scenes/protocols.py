@@ -8,7 +8,7 @@ maps and Lyapunov spectra work on any object with the methods of ``Scene``.
 The analyses ask through one small protocol per capability, never through
 the scene's type: ``HasSection`` (section coordinates, the area-preserving
 one named, and the explorer's ``SectionChart``), ``HasCheckerFlight`` (the
-flight the diffrax checker integrates), ``HasPeriodicSymmetry`` (what
+flight the diffrax checker integrates, or the ``RigidBodyColumn`` it builds one from), ``HasPeriodicSymmetry`` (what
 periodic-orbit search divides out) and ``SamplesStates`` (valid starts on an
 energy shell). A scene provides those it can; ``docs/how-to/new-scene.md``
 says how to write one.
@@ -39,6 +39,7 @@ __all__ = [
     "HasSection",
     "HasCheckerFlight",
     "CheckerFlight",
+    "RigidBodyColumn",
     "HasPeriodicSymmetry",
     "HasAngularMomentum",
     "PERIODIC_SYMMETRIES",
@@ -257,11 +258,46 @@ class CheckerFlight(Protocol):
         ...
 
 
+@dataclasses.dataclass(frozen=True)
+class RigidBodyColumn:
+    """What the checker needs to fly a planar rigid body in a fixed table itself: geometry, never dynamics.
+
+    A scene whose state is ``[x, y, alpha, vx, vy, omega]`` and whose walls do
+    not move can hand ``jb.check`` this description instead of a flight of its
+    own: the checker then flies the point ``(x, y, z = scale alpha)`` straight
+    inside the column ``W_g(x, y, z) >= 0`` that ``gaps`` bound, reflects it
+    about ``grad W_g`` and bounds ``W_g''`` itself
+    (``jaxbill._check.checker.BodyColumnFlight``). Nothing here is a
+    collision time, an impulse or a curvature bound of the scene's own.
+
+    Attributes:
+        gaps: the scene's gaps of a state, ``(6,) -> (G,)``, read at zero velocity (geometry only).
+        gap_codes: the ``Orbit.contact`` code of each gap.
+        scale: ``sqrt(I/M)`` for a body that turns, 1 otherwise (length).
+        frozen: the body never turns (infinite inertia): the impulse has no turning part.
+        point: the gaps do not depend on ``alpha`` (a point: its spin is a free rotor).
+        length: the unit of length of the comparison (the table's size).
+        gap_unit: the gaps' unit (``WALL_TOLERANCE`` and the corner test are relative to it).
+        extent: ``(x_low, x_high, y_low, y_high)``, a box that holds the table (infinite along an
+            unbounded direction).
+    """
+
+    gaps: Callable[[jax.Array], jax.Array]
+    gap_codes: tuple[int, ...]
+    scale: float
+    frozen: bool
+    point: bool
+    length: float
+    gap_unit: float
+    extent: tuple[float, float, float, float]
+
+
 class HasCheckerFlight(Protocol):
     """A scene that ``jb.check`` can verify: it says what flight the checker integrates."""
 
-    def checker_flight(self) -> CheckerFlight:
-        """The ``CheckerFlight`` of this (unbatched, concrete) scene."""
+    def checker_flight(self) -> CheckerFlight | RigidBodyColumn:
+        """The ``CheckerFlight`` of this (unbatched, concrete) scene, or the ``RigidBodyColumn`` the checker
+        builds its flight from."""
         ...
 
 
