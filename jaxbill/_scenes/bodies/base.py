@@ -183,10 +183,11 @@ class Body(eqx.Module):
         if offsets is None:
             zero = jnp.zeros_like(cx)
             return (along_path(piece, cx, cy, vx, vy, *((zero, zero) if curvatures else ())),)
-        return tuple(
-            piece.along_flight(cx, cy, rx, ry, vx, vy, *self.turn_vector(rx, ry), omega, curvatures)
-            for rx, ry in offsets
-        )
+        out = []
+        for rx, ry in offsets:
+            tx, ty = self.turn_vector(rx, ry)
+            out.append(piece.along_flight(cx, cy, rx, ry, vx, vy, tx, ty, omega, curvatures))
+        return tuple(out)
 
     def flight_bounds(self, piece: Piece, motion: Motion) -> tuple:
         """``(lower_curv, upper_curv, jerk or None)`` of every contact gap with ``piece`` along the flight."""
