@@ -453,7 +453,8 @@ class BodyInTable(eqx.Module):
     def area_preserving_section(self) -> str:
         """The section whose coordinates the collision map preserves area in (for a point, or a body at fixed
         invariants between walls); for a body in a bounded table the Birkhoff section is a projection."""
-        return self.table.section_names[0]
+        names = self.table.section_names
+        return names[0] if names else ""
 
     def section(self, states: jax.Array, contacts: jax.Array | None = None, name: str | None = None) -> jax.Array:
         """Section points ``(..., 2)`` of states ``(..., 6)`` at collisions (``HasSection``): ``"birkhoff"``,
@@ -481,6 +482,8 @@ class BodyInTable(eqx.Module):
     @property
     def section_chart(self) -> SectionChart:
         """How ``jb.explore`` seeds, reads and draws the area-preserving section."""
+        if not self.sections:
+            raise TypeError(f"{self.table.name} ({type(self.table).__name__}) offers no section to explore")
         return body_sections.CHARTS[self.area_preserving_section]
 
     def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):
