@@ -32,6 +32,12 @@ into ``out_dir``:
   billiard is integrable, so every orbit draws a curve) and the stick's
   ``(s, p)`` of the touching end (a projection); recorded under
   ``"ellipse"``;
+* ``compositions.png``: bodies in tables (``jb.BodyInTable``): a triangle
+  in a stadium, a dumbbell of masses 1:3 in an ellipse, a square in a
+  circle, a point in the stadium and an elliptic coin between two walls;
+  one orbit each from a Liouville start at ``E = 1/2`` (the coin's on its
+  floor section, tossed sideways), the table, the centre's path and the
+  body at some of its collisions; recorded under ``"compositions"``;
 * ``summary.json`` and ``summary.txt``: every panel's parameters, orbit and
   collision counts, worst invariant drifts, chaotic fraction, start states
   (json), timings. The wall scenes' panels are under ``"walls"`` (not
@@ -79,12 +85,14 @@ import json
 import os
 import sys
 import time
+from typing import cast
 
 import jax
 import numpy as np
 from matplotlib.figure import Figure
 
 from jaxbill import plotting
+from jaxbill._analysis.chaos import sample_energy_shell
 from jaxbill._analysis.section_measures import (
     CHAOTIC_DIVERGENCE,
     count_islands,
@@ -93,6 +101,12 @@ from jaxbill._analysis.section_measures import (
     twin_states,
 )
 from jaxbill._engine.collision import orbit as run_orbit
+from jaxbill._scenes.bodies.dumbbell import Dumbbell
+from jaxbill._scenes.bodies.ellipse import EllipseBody
+from jaxbill._scenes.bodies.point import PointBody
+from jaxbill._scenes.bodies.polygon import PolygonBody
+from jaxbill._scenes.body_in_table import BodyInTable
+from jaxbill._scenes.body_sections import draw_orbit
 from jaxbill._scenes.circle.scene import StickInCircle
 from jaxbill._scenes.circle.sections import (
     half_corner_angle,
@@ -103,6 +117,11 @@ from jaxbill._scenes.circle.sections import (
 )
 from jaxbill._scenes.ellipse.scene import StickInEllipse
 from jaxbill._scenes.ellipse.sections import draw_ellipse_orbit, ellipse_length
+from jaxbill._scenes.protocols import Scene
+from jaxbill._scenes.tables.circle import Circle
+from jaxbill._scenes.tables.ellipse import Ellipse
+from jaxbill._scenes.tables.flat import Strip
+from jaxbill._scenes.tables.stadium import Stadium
 from jaxbill._scenes.walls import sections as ws
 from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D
 from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D
@@ -131,6 +150,11 @@ ELLIPSE_AXES = (2.0, 1.3)
 ELLIPSE_ELL = 0.6
 ELLIPSE_STATE = (0.1, 0.2, 0.3, 0.7, -0.4, 0.9)
 WALLS_ENERGY = 0.5  # E': the energy without the (absent) horizontal motion
+# Written too, recorded under summary["compositions"]: bodies in tables, one orbit each.
+COMPOSITIONS_FILES = ("compositions.png",)
+COMPOSITIONS_SEED = 11  # of each start's draw from the energy shell
+COIN_START = (0.9, 0.2)  # (alpha, p) on the coin's floor section
+COIN_SPREAD = 10.0  # the coin's sideways speed spreads its collisions over this length
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,6 +179,8 @@ class Settings:
     ellipse_trajectory_collisions: int = 30
     ellipse_orbits: int = 24
     ellipse_collisions: int = 2_000
+    compositions_collisions: int = 24
+    compositions_bodies: int = 8  # bodies drawn per panel, at evenly spaced collisions
     dpi: int = 150
     quick: bool = False
 
@@ -170,6 +196,8 @@ class Settings:
             walls_collisions=300,
             ellipse_orbits=6,
             ellipse_collisions=300,
+            compositions_collisions=12,
+            compositions_bodies=6,
             dpi=60,
             quick=True,
         )
@@ -599,6 +627,98 @@ def _ellipse_figures(settings: Settings, save, bar) -> list:
     ]
 
 
+def composition_scenes() -> list[tuple[str, str, str, BodyInTable]]:
+    """The compositions of ``compositions.png``: ``(label, body, table, scene)``, body and table as written."""
+    stadium = Stadium(1.0, 1.0)
+    return [
+        (
+            "triangle in a stadium",
+            "PolygonBody.regular(3, 0.3)",
+            "Stadium(1, 1)",
+            BodyInTable(PolygonBody.regular(3, 0.3), stadium),
+        ),
+        (
+            "dumbbell 1:3 in an ellipse",
+            "Dumbbell.from_masses(0.25, 0.75, 1)",
+            "Ellipse(2, 1.3)",
+            BodyInTable(Dumbbell.from_masses(0.25, 0.75, 1.0), Ellipse(2.0, 1.3)),
+        ),
+        (
+            "square in a circle",
+            "PolygonBody.regular(4, 0.5)",
+            "Circle(1)",
+            BodyInTable(PolygonBody.regular(4, 0.5), Circle(1.0)),
+        ),
+        ("point in the stadium", "PointBody()", "Stadium(1, 1)", BodyInTable(PointBody(), stadium)),
+        ("coin between walls", "EllipseBody(1, 0.5)", "Strip(4)", BodyInTable(EllipseBody(1.0, 0.5), Strip(4.0))),
+    ]
+
+
+def _as_scene(scene: BodyInTable) -> Scene:
+    """The scene as the engine's protocol: a body in a table names its gaps and walls by properties (they depend on
+    its parts), which pyright does not match to the protocol's class constants."""
+    return cast(Scene, scene)
+
+
+def _composition_start(scene: BodyInTable, n: int) -> np.ndarray:
+    """A Liouville start at ``E = 1/2``; between walls, one on the floor section tossed sideways (``vx`` changes
+    nothing else, so it is chosen to spread the ``n`` collisions over ``COIN_SPREAD``)."""
+    if "floor" not in scene.sections:
+        states, _ = sample_energy_shell(_as_scene(scene), 1, energy=ENERGY, seed=COMPOSITIONS_SEED)
+        return states[0]
+    state = np.array(scene.section_state(np.asarray(COIN_START), energy=ENERGY))
+    upright = run_orbit(_as_scene(scene), state, n)
+    state[3] = COIN_SPREAD / float(np.asarray(upright.t)[-1])
+    return state
+
+
+def _compositions_figures(settings: Settings, save, bar) -> list:
+    """``compositions.png``: one orbit of each composition in configuration space; records for
+    ``summary["compositions"]``."""
+    t0 = time.perf_counter()
+    n, bodies = settings.compositions_collisions, settings.compositions_bodies
+    compositions = composition_scenes()
+    fig = Figure(figsize=(15, 9), layout="constrained")
+    # the strip is wide: the coin gets two places in the second row
+    axes = fig.subplot_mosaic([[0, 1, 2], [3, 4, 4]])
+    records = []
+    for k, (label, body, table, scene) in enumerate(compositions):
+        ax = axes[k]
+        state0 = _composition_start(scene, n)
+        orb = jax.device_get(run_orbit(_as_scene(scene), state0, n))
+        draw_orbit(ax, scene, state0, orb, "tab:blue", body_every=max(1, n // bodies))
+        ax.set_title(f"{label}\n{body} in {table}", fontsize="medium")
+        energies = np.asarray(scene.energy(orb.state))
+        records.append(
+            {
+                "label": label,
+                "body": body,
+                "table": table,
+                "kind": scene.kind,
+                "energy": float(np.asarray(scene.energy(state0))),
+                "collisions": n,
+                "missed_or_failed": int(np.sum(np.asarray(orb.contact) == 0)),
+                "energy_drift": float(np.max(np.abs(energies / float(np.asarray(scene.energy(state0))) - 1.0))),
+                "state0": state0.tolist(),
+            }
+        )
+    fig.suptitle(
+        f"Bodies in tables: the centre's path over {n} collisions and the body at one collision in "
+        f"{max(1, n // bodies)} (mass 1, E = 1/2)"
+    )
+    path = save(fig, COMPOSITIONS_FILES[0])
+    bar.advance("compositions")
+    return [
+        {
+            "name": "compositions",
+            "file": path,
+            "panels": records,
+            "seconds": time.perf_counter() - t0,
+            "description": "bodies in tables: a triangle, a 1:3 dumbbell, a square, a point and a coin, one orbit each",
+        }
+    ]
+
+
 def _embed_2d(states2d) -> np.ndarray:
     """2D ``[x, z, th, vx, vz, om]`` as 3D states in the ``x``-``z`` plane."""
     x, z, th, vx, vz, om = np.moveaxis(np.asarray(states2d, dtype=np.float64), -1, 0)
@@ -645,7 +765,7 @@ def make_figures(
     if settings is None:
         settings = Settings.quick_settings() if quick else Settings()
     os.makedirs(out_dir, exist_ok=True)
-    steps = 13
+    steps = 14
     bar = Progress(steps, progress)
     bar.show("starting (compiling the collision map)")
     started = time.perf_counter()
@@ -860,6 +980,7 @@ def make_figures(
 
     walls_figures = _walls_figures(settings, save, bar)
     ellipse_figures = _ellipse_figures(settings, save, bar)
+    compositions_figures = _compositions_figures(settings, save, bar)
     studies_figures = _studies_figures(out_dir, settings.quick, bar)
 
     all_panels = [p for f in figures for p in f["panels"]]
@@ -878,6 +999,7 @@ def make_figures(
         "figures": figures,
         "walls": walls_figures,
         "ellipse": ellipse_figures,
+        "compositions": compositions_figures,
         "studies": studies_figures,
         "walls_worst_energy_drift": max((p["energy_drift"] for f in walls_figures for p in f["panels"]), default=None),
         "walls_worst_momentum_drift": max(
@@ -956,6 +1078,13 @@ def summary_text(summary: dict) -> str:
             lines.append(
                 f"  {panel['label']:<34} {panel['orbits']:>4} orbits x {panel['collisions_per_orbit']} "
                 f"collisions, dE/E {panel['energy_drift']:.1e}"
+            )
+    for figure in summary.get("compositions", []):
+        lines += ["", f"{figure['file']}: {figure['description']} ({figure['seconds']:.1f} s)"]
+        for panel in figure["panels"]:
+            lines.append(
+                f"  {panel['label']:<28} {panel['body']} in {panel['table']}: {panel['collisions']} collisions, "
+                f"dE/E {panel['energy_drift']:.1e}"
             )
     for figure in summary.get("studies", []):
         if figure["file"] is None:

@@ -50,7 +50,9 @@ def _figures(args: argparse.Namespace) -> int:
     from jaxbill._figures import make_figures
 
     summary = make_figures(args.out, quick=args.quick, progress=not args.no_progress)
-    figures = len(summary["figures"]) + len(summary.get("walls", []))
+    drawn = summary.get("walls", []) + summary.get("ellipse", []) + summary.get("compositions", [])
+    drawn += [figure for figure in summary.get("studies", []) if figure["file"] is not None]
+    figures = len(summary["figures"]) + len(drawn)
     print(
         f"wrote {figures} figures, summary.json and summary.txt to {args.out} "
         f"in {summary['total_seconds']:.1f} s ({summary['total_collisions']} collisions; worst relative "

@@ -21,7 +21,7 @@ import pytest
 
 import jaxbill as jb
 from jaxbill import cli
-from jaxbill._figures import ELLIPSE_FILES, FILES, WALLS_FILES
+from jaxbill._figures import COMPOSITIONS_FILES, ELLIPSE_FILES, FILES, WALLS_FILES
 
 
 @pytest.fixture(scope="module")
@@ -184,6 +184,50 @@ def test_ellipse_figure_is_written(quick_run):
     for panel in panels:
         assert panel["collisions"] == panel["orbits"] * panel["collisions_per_orbit"] > 0
         assert panel["energy_drift"] < 1e-12
+
+
+def test_compositions_figure_is_written(quick_run):
+    """``compositions.png`` and its record: each panel's orbit, run again from its recorded start in a scene built
+    here from the public API, has the recorded length and drift and keeps the energy ``M |v|^2 / 2 + I omega^2 / 2``
+    to rounding; every start has ``E = 1/2`` (the coin: ``E' = 1/2`` without its sideways motion)."""
+    out, summary = quick_run
+    assert [figure["file"] for figure in summary["compositions"]] == list(COMPOSITIONS_FILES)
+    path = out / COMPOSITIONS_FILES[0]
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 1000
+    assert COMPOSITIONS_FILES[0] in (out / "summary.txt").read_text()
+    stadium = jb.Stadium(1.0, 1.0)
+    scenes = {
+        ("PolygonBody.regular(3, 0.3)", "Stadium(1, 1)"): jb.BodyInTable(jb.PolygonBody.regular(3, 0.3), stadium),
+        ("Dumbbell.from_masses(0.25, 0.75, 1)", "Ellipse(2, 1.3)"): jb.BodyInTable(
+            jb.Dumbbell.from_masses(0.25, 0.75, 1.0), jb.Ellipse(2.0, 1.3)
+        ),
+        ("PolygonBody.regular(4, 0.5)", "Circle(1)"): jb.BodyInTable(jb.PolygonBody.regular(4, 0.5), jb.Circle(1.0)),
+        ("PointBody()", "Stadium(1, 1)"): jb.BodyInTable(jb.PointBody(), stadium),
+        ("EllipseBody(1, 0.5)", "Strip(4)"): jb.BodyInTable(jb.EllipseBody(1.0, 0.5), jb.Strip(4.0)),
+    }
+    panels = summary["compositions"][0]["panels"]
+    assert [(panel["body"], panel["table"]) for panel in panels] == list(scenes)
+    for panel in panels:
+        scene = scenes[(panel["body"], panel["table"])]
+        state0 = np.asarray(panel["state0"])
+        n = panel["collisions"]
+        orb = jb.orbit(scene, state0, n)
+        states, contact = np.asarray(orb.state), np.asarray(orb.contact)
+        assert states.shape == (n, 6) and np.all(np.isfinite(states))
+        assert panel["missed_or_failed"] == int(np.sum(contact == 0)) == 0
+        mass, inertia = float(scene.body.mass), float(scene.body.inertia)
+
+        def energy(s):
+            return 0.5 * mass * (s[..., 3] ** 2 + s[..., 4] ** 2) + 0.5 * inertia * s[..., 5] ** 2
+
+        sideways = 0.5 * mass * state0[3] ** 2 if panel["table"].startswith("Strip") else 0.0
+        assert energy(state0) - sideways == pytest.approx(0.5, abs=1e-12)
+        assert panel["energy"] == pytest.approx(energy(state0), rel=1e-12)
+        drift = np.max(np.abs(energy(states) / energy(state0) - 1))
+        # the two energy formulas may round apart by an ulp or two of E
+        assert panel["energy_drift"] == pytest.approx(drift, abs=5e-16)
+        assert drift < 1e-12
+    assert [panel["kind"] for panel in panels] == ["rotor", "rotor", "rotor", "point", "rotor"]
 
 
 def test_walls_figures_are_written(quick_run):
