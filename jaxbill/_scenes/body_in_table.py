@@ -58,9 +58,8 @@ from jaxbill._scenes.tables.base import Motion, Table
 # The contact code of gap g (0 and 2 are taken: no contact, several at once).
 FIRST_GAP_CODE = 3
 
-# Orbits per vectorised lane of a batch on a CPU: a turning body's search branches (one orbit after
-# another, each bitwise the orbit alone), a closed form vectorises.
-_BATCH_CHUNK = {"rotor": 1, "static": 256, "point": 256}
+# Orbits per vectorised lane of a batch on a CPU for a closed form (a search branches: one orbit after another).
+CLOSED_FORM_LANES = 256
 
 
 def _contact_name(contact: str, wall: str) -> str:
@@ -176,7 +175,9 @@ class BodyInTable(eqx.Module):
 
     @property
     def batch_chunk(self) -> int:
-        return _BATCH_CHUNK[self.body.kind] if not self.searches_for_roots or self.body.kind == "rotor" else 1
+        """A search runs orbit after orbit (it branches; each orbit is then bitwise the orbit alone), a
+        closed form in vectorised lanes of 256."""
+        return 1 if self.searches_for_roots else CLOSED_FORM_LANES
 
     @property
     def gap_scale(self) -> jax.Array:
