@@ -108,6 +108,8 @@ class BodyInTable(eqx.Module):
                 )
         self.body, self.table = body, table
         if all(is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(self)):
+            # The table's own parameters first: a circle of radius -1 is a bad R, not a body that cannot fit.
+            self.table.check()
             self._check_fit()
 
     # -- parameters ---------------------------------------------------------------------
