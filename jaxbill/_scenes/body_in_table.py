@@ -170,7 +170,7 @@ class BodyInTable(eqx.Module):
 
     @property
     def batch_chunk(self) -> int:
-        return _BATCH_CHUNK[self.kind] if not self.searches_for_roots or self.kind == "rotor" else 1
+        return _BATCH_CHUNK[self.body.kind] if not self.searches_for_roots or self.body.kind == "rotor" else 1
 
     @property
     def gap_scale(self) -> jax.Array:
@@ -193,7 +193,7 @@ class BodyInTable(eqx.Module):
         batch = max((s[0] for s in shapes if s), default=None)
         if batch is not None and state.ndim == 2 and batch != state.shape[0]:
             raise ValueError(f"a batch of {batch} scenes needs a batch of {batch} states; got {state.shape[0]}")
-        if self.kind == "static" and np.any(state[..., 5] != 0):
+        if self.body.kind == "static" and np.any(state[..., 5] != 0):
             raise ValueError(
                 "omega must be 0 for a body that never turns (inertia = inf): an infinitely heavy body cannot spin"
             )
@@ -206,7 +206,7 @@ class BodyInTable(eqx.Module):
         # A contact on the wall that does not move inwards is refused eagerly; a
         # tangential one would stall the map (zero-length flights), so poison.
         ok &= ~on_wall_not_inwards(gaps, self.approach_speeds(state))
-        if self.kind == "static":
+        if self.body.kind == "static":
             ok &= state[5] == 0.0
         return ok
 
@@ -218,7 +218,7 @@ class BodyInTable(eqx.Module):
 
     def orbit_constants(self, state0: tuple):
         """A body that never turns keeps its contacts' offsets for a whole orbit."""
-        if self.kind != "static":
+        if self.body.kind != "static":
             return None
         return self.body.offsets(*cos_sin(state0[2]))
 
@@ -226,21 +226,21 @@ class BodyInTable(eqx.Module):
     def searches_for_roots(self) -> bool:
         """Static: a turning body's gaps are transcendental; a straight flight's are closed forms where every
         wall gives one."""
-        if self.kind == "rotor":
+        if self.body.kind == "rotor":
             return True
         return not all(self.body.has_closed_form(piece) for piece in self.table.pieces)
 
     def _offsets(self, alpha, constants=None):
         """The body's contact offsets at ``alpha`` (``None`` for a point; the orbit's constants if it never turns)."""
-        if self.kind == "point":
+        if self.body.kind == "point":
             return None
-        if self.kind == "static" and constants is not None:
+        if self.body.kind == "static" and constants is not None:
             return constants
         return self.body.offsets(*cos_sin(alpha))
 
     def _motion(self, state: tuple) -> Motion:
         x, y, _, vx, vy, omega = state
-        if self.kind != "rotor":
+        if self.body.kind != "rotor":
             omega = jnp.zeros_like(omega)  # its contacts move on straight lines
         body = self.body
         return Motion(x, y, vx, vy, omega, body.radius + jnp.zeros_like(x), body.inner_radius2 + jnp.zeros_like(x))
@@ -248,7 +248,7 @@ class BodyInTable(eqx.Module):
     @property
     def _sharp(self) -> bool:
         """Static: every wall bounds the gaps' third derivative, so the search takes its sharper steps."""
-        return self.kind == "rotor" and all(self.body.bounds_jerk(piece) for piece in self.table.pieces)
+        return self.body.kind == "rotor" and all(self.body.bounds_jerk(piece) for piece in self.table.pieces)
 
     def root_search(self, state: tuple):
         """``(profile, RootBounds)`` of the flight from ``state`` (the profile is the state itself)."""
@@ -308,7 +308,7 @@ class BodyInTable(eqx.Module):
 
     def _gaps_along_flight(self, state: tuple, t: jax.Array, sharp: bool):
         x, y, alpha, vx, vy, omega = state
-        if self.kind != "rotor":
+        if self.body.kind != "rotor":
             omega = jnp.zeros_like(omega)
         cx, cy = x + vx * t, y + vy * t
         offsets = self._offsets(alpha + omega * t)
@@ -334,7 +334,7 @@ class BodyInTable(eqx.Module):
         absolute error into every contact. A body that never turns keeps ``alpha``.
         """
         x, y, alpha, vx, vy, omega = state
-        if self.kind != "static":
+        if self.body.kind != "static":
             alpha = wrapped_angle(alpha + omega * t)
         return x + vx * t, y + vy * t, alpha, vx, vy, omega
 
@@ -437,7 +437,7 @@ class BodyInTable(eqx.Module):
         state = jnp.asarray(state)
         x, y, vx, vy, omega = (state[..., i] for i in (0, 1, 3, 4, 5))
         orbital = self.body.mass * (x * vy - y * vx)
-        if self.kind == "static":
+        if self.body.kind == "static":
             return orbital
         return orbital + self.body.spin_term(omega, self.body.inertia * omega)
 
@@ -495,7 +495,7 @@ class BodyInTable(eqx.Module):
     def dynamical_indices(self) -> tuple[int, ...]:
         """All six coordinates for a turning body; ``(x, y, vx, vy)`` for a point (a free spin) and for a body
         that never turns (``alpha`` a constant, ``omega = 0``)."""
-        return (0, 1, 2, 3, 4, 5) if self.kind == "rotor" else (0, 1, 3, 4)
+        return (0, 1, 2, 3, 4, 5) if self.body.kind == "rotor" else (0, 1, 3, 4)
 
     def phase_velocity(self, state: jax.Array) -> jax.Array:
         """The flow's vector field during free flight, ``[vx, vy, omega, 0, 0, 0]``, shape ``(..., 6)``."""
