@@ -115,6 +115,8 @@ class BodyInTable(eqx.Module):
                 )
         self.body, self.table = body, table
         if all(is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(self)):
+            # The table's own parameters first: a circle of radius -1 is a bad R, not a body that cannot fit.
+            self.table.check()
             self._check_fit()
 
     # -- parameters ---------------------------------------------------------------------
@@ -294,8 +296,11 @@ class BodyInTable(eqx.Module):
         """Every gap and its first (and, for the sharper steps, second) time derivative after a flight of ``t``.
 
         Where a wall's bounds were estimated (``Piece.checks_curvature``), a gap
-        whose curvature breaks them is NaN: the search stops and the orbit is
-        poisoned rather than continued past a root it may have stepped over.
+        whose curvature breaks them is NaN, and so is a gap found through its
+        wall by more than rounding (a safe step never lands there: one did, so
+        the bounds were too small where the search did not look): the search
+        stops and the orbit is poisoned rather than continued past a root it
+        may have stepped over.
         """
         if not self._checked:
             return self._gaps_along_flight(profile, t, self._sharp)
@@ -303,7 +308,10 @@ class BodyInTable(eqx.Module):
         gaps, slopes, curvatures = self._gaps_along_flight(state, t, True)
         lower_curv, upper_curv = functools.reduce(jnp.maximum, lower), functools.reduce(jnp.maximum, upper)
         slack = 1e-9 * (lower_curv + upper_curv)
-        inside = tuple((k >= -lower_curv - slack) & (k <= upper_curv + slack) for k in curvatures)
+        through = -WALL_TOLERANCE * self.gap_scale
+        inside = tuple(
+            (k >= -lower_curv - slack) & (k <= upper_curv + slack) & (g >= through) for g, k in zip(gaps, curvatures)
+        )
         gaps = tuple(jnp.where(ok, g, jnp.nan) for g, ok in zip(gaps, inside))
         return (gaps, slopes, curvatures) if self._sharp else (gaps, slopes)
 

@@ -10,6 +10,8 @@ the mass-weighted coordinates ``pi = (sqrt(M) vx, sqrt(M) vy, sqrt(I) omega)``
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -81,9 +83,11 @@ def table_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=N
             "(only a turning body in a circle does); leave it None"
         )
     size = float(scene.length_scale)
-    x_low, x_high, y_low, y_high = (float(v) for v in scene.table.extent)
-    x_low, x_high = max(x_low, -size), min(x_high, size)
-    y_low, y_high = max(y_low, -size), min(y_high, size)
+    # Only an unbounded direction (along the strip) is cut to +- the size: a bounded table's whole box is
+    # drawn from, or configurations beyond the size (the ends of an ellipse, sqrt(ab) < a) are never drawn.
+    x_low, x_high, y_low, y_high = (
+        bound if math.isfinite(bound) else math.copysign(size, bound) for bound in map(float, scene.table.extent)
+    )
     middle = np.array([0.5 * (x_low + x_high), 0.5 * (y_low + y_high)])
     half = np.array([0.5 * (x_high - x_low), 0.5 * (y_high - y_low)])
     c = middle + rng.uniform(-1.0, 1.0, (m, 2)) * half

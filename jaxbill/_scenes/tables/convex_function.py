@@ -164,6 +164,14 @@ def _estimate(function, box: np.ndarray) -> tuple[float, float, float]:
     gradient = jax.vmap(jax.grad(function, argnums=(0, 1)))(jnp.asarray(gx), jnp.asarray(gy))
     hessian = jax.vmap(jax.hessian(lambda p: function(p[0], p[1])))(jnp.stack([gx, gy], axis=-1))
     norms = np.hypot(np.asarray(gradient[0]), np.asarray(gradient[1]))
+    smooth = np.isfinite(norms) & np.all(np.isfinite(np.asarray(hessian)), axis=(1, 2))
+    if not np.all(smooth):
+        # A kink (|P| at the origin) has no Hessian bound for the search to step by.
+        worst = int(np.argmin(smooth))
+        raise ValueError(
+            "function must be twice differentiable over the extent (finite gradient and Hessian by autodiff); "
+            f"they are not finite at ({gx[worst]:.6g}, {gy[worst]:.6g})"
+        )
     eigen = np.linalg.eigvalsh(np.asarray(hessian))
     # The band around the table where a contact point may stray by rounding, and the table.
     spacing = max(box[1] - box[0], box[3] - box[2]) / (ESTIMATE_GRID - 1)
