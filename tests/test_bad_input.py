@@ -148,7 +148,7 @@ BAD_STATES = [
     ("centre-outside", lambda: np.array([2.5, 0, 0, 1, 0, 0.0]), circle, r"outside the circle"),
     ("on-wall-outwards", lambda: _on_wall_outwards(False), rotor, r"on the circle without moving inwards"),
     ("on-wall-outwards-lens", lambda: _on_wall_outwards(False), lens, r"on the circle without moving inwards"),
-    ("spin-lens", lambda: np.array([0, 0, 0, 1, 0, 0.1]), lens, r"omega must be 0 for a body that never turns"),
+    ("spin-lens", lambda: np.array([0, 0, 0, 1, 0, 0.1]), lens, r"omega must be 0 for the static lens"),
 ]
 
 

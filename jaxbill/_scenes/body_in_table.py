@@ -100,6 +100,7 @@ class BodyInTable(eqx.Module):
     symplectic_flow: ClassVar[bool] = True  # elastic impulses, a Hamiltonian flight
     periodic_symmetry: ClassVar[str] = "none"  # a periodic orbit closes in every coordinate
     periodic_angles: ClassVar[tuple[int, ...]] = (2,)  # compared modulo 2 pi when an orbit closes
+    never_turning: ClassVar[str] = "a body that never turns"  # what messages call the body of infinite inertia
 
     def __init__(self, body: Body, table: Table):
         require_x64()
@@ -204,7 +205,7 @@ class BodyInTable(eqx.Module):
             raise ValueError(f"a batch of {batch} scenes needs a batch of {batch} states; got {state.shape[0]}")
         if self.body.kind == "static" and np.any(state[..., 5] != 0):
             raise ValueError(
-                "omega must be 0 for a body that never turns (inertia = inf): an infinitely heavy body cannot spin"
+                f"omega must be 0 for {self.never_turning} (inertia = inf): an infinitely heavy body cannot spin"
             )
 
     def is_valid(self, state: jax.Array) -> jax.Array:

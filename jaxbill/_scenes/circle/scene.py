@@ -111,6 +111,7 @@ class StickInCircle(BodyInTable):
     state_layout: ClassVar[str] = "[x, y, alpha, vx, vy, omega]"
     gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
     wall_name: ClassVar[str] = "the circle"
+    never_turning: ClassVar[str] = "the static lens"
 
     def __init__(
         self,

@@ -143,6 +143,7 @@ class StickInEllipse(BodyInTable):
     state_layout: ClassVar[str] = "[x, y, alpha, vx, vy, omega]"
     gap_names: ClassVar[tuple[str, ...]] = ("end P1", "end P2")
     wall_name: ClassVar[str] = "the ellipse"
+    never_turning: ClassVar[str] = "a stick that never turns"
 
     def __init__(
         self,

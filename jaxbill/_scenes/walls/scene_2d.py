@@ -75,6 +75,7 @@ class StickBetweenWalls2D(BodyInTable):
     state_layout: ClassVar[str] = "[x, z, theta, vx, vz, omega]"
     gap_names: ClassVar[tuple[str, ...]] = walls.GAP_NAMES
     wall_name: ClassVar[str] = "the walls"
+    never_turning: ClassVar[str] = "a stick that never turns"
     # P1/P2 on the floor (1, -1) and on the ceiling (3, -3), as the gaps come, wall by wall.
     gap_codes: ClassVar[tuple[int, ...]] = (walls.FLOOR, -walls.FLOOR, walls.CEILING, -walls.CEILING)
     contact_codes: ClassVar[tuple[int, ...]] = walls.CONTACT_CODES
