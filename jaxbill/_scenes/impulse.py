@@ -23,9 +23,11 @@ point in a corner of two sides, both ends of a stick on the wall): the contacts
 within ``CORNER_ULPS`` ulps of the gap's unit of the wall and approaching it
 are resolved one after another, the fastest-approaching first, each of the
 others in the order of their approach speeds before the event, and only if it
-still approaches when its turn comes. An ill-posed event gets a deterministic
-answer, reported as the contact code ``SEVERAL_CONTACTS``; for two contacts it
-is: the faster one, then the other if it still approaches.
+still approaches when its turn comes (at most ``MAX_SIMULTANEOUS`` of them: a
+further one that still approaches takes its impulse in the next collision, at
+``dt = 0``). An ill-posed event gets a deterministic answer, reported as the
+contact code ``SEVERAL_CONTACTS``; for two contacts it is: the faster one,
+then the other if it still approaches.
 """
 
 from __future__ import annotations
@@ -37,6 +39,10 @@ from jaxbill._engine.step import rarely, where
 
 # A second contact within this many ulps of the gap's unit touches at the same instant.
 CORNER_ULPS = 64.0
+# At most this many contacts take their impulse in one event (two corners of a square landing flat in a
+# corner of the table); any other that still approaches takes it in the next collision, at dt = 0. The
+# pass is unrolled: every turn scans every contact, so its size, not the number of gaps, must stay small.
+MAX_SIMULTANEOUS = 3
 
 
 def reflect(state: tuple, lever, normal: tuple, mass_ratio) -> tuple:
@@ -73,7 +79,7 @@ def one_after_another(state: tuple, index, touching: tuple, speeds: tuple, kick,
     """
     count = len(touching)
     waiting = tuple(t | (index == k) for k, t in enumerate(touching))
-    for turn in range(count):
+    for turn in range(min(count, MAX_SIMULTANEOUS)):
         if turn == 0:
             found, best, best_speed = jnp.ones(jnp.shape(index), bool), index, select(speeds, index)
         else:
