@@ -35,7 +35,7 @@ synthetic mouse and slider events, and ``jaxbill explore --save`` uses it.
 
 from __future__ import annotations
 
-import dataclasses
+import inspect
 import math
 import pathlib
 import time
@@ -91,15 +91,28 @@ UNIT_PARAMETERS = ("mass",)
 
 
 def scene_parameters(scene) -> dict[str, float]:
-    """The scene's parameters as floats, by name: its non-static dataclass fields (all must be scalars)."""
+    """The scene's numeric parameters as floats, by the names its constructor takes (all must be scalars).
+
+    A constructor argument that is not a number (a static ``kind``, a body or a
+    table object) is left out; a scene with no numeric parameter by name
+    (``jb.BodyInTable(body, table)``) cannot be explored.
+    """
     values = {}
-    for field in dataclasses.fields(scene):
-        if field.metadata.get("static", False):
+    for name in inspect.signature(type(scene)).parameters:
+        value = getattr(scene, name, None)
+        if value is None or isinstance(value, str):
             continue
-        value = np.asarray(getattr(scene, field.name))
-        if value.ndim != 0:
-            raise ValueError(f"scene: explore needs one scene, not a batch ({field.name} has shape {value.shape})")
-        values[field.name] = float(value)
+        array = np.asarray(value)
+        if not np.issubdtype(array.dtype, np.number):
+            continue
+        if array.ndim != 0:
+            raise ValueError(f"scene: explore needs one scene, not a batch ({name} has shape {array.shape})")
+        values[name] = float(array)
+    if not values:
+        raise TypeError(
+            f"scene: explore needs a scene whose constructor takes its parameters as numbers "
+            f"(StickInCircle, StickInEllipse, StickBetweenWalls2D, StickBetweenWalls3D), not {type(scene).__name__}"
+        )
     return values
 
 

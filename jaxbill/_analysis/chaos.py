@@ -164,7 +164,7 @@ def sample_energy_shell(
     if not isinstance(scene, SamplesStates):
         raise TypeError(
             f"scene: {type(scene).__name__} cannot draw states on an energy shell (no sample_states: "
-            "the SamplesStates protocol of jaxbill._scenes.protocols; the stick in a circle and in an ellipse have one)"
+            "every body in a table, jb.BodyInTable and the sticks built on it, has one)"
         )
     rng = np.random.default_rng(seed)
     states, weights = [], []

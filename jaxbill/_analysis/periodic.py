@@ -110,6 +110,7 @@ from jaxbill._scenes.protocols import (
     SEVERAL_CONTACTS,
     HasAngularMomentum,
     Scene,
+    has_angular_momentum,
 )
 from jaxbill._scenes.walls import periodic as walls_orbits
 from jaxbill._scenes.walls.periodic import wrap_angle as _wrap
@@ -423,7 +424,7 @@ def _periodic_orbit(
 
 def _angular_momentum_or_nan(scene: Scene, state: jax.Array) -> jax.Array:
     """The scene's angular momentum of ``state``, NaN for a scene without one (the 2D walls)."""
-    return scene.angular_momentum(state) if isinstance(scene, HasAngularMomentum) else jnp.full((), jnp.nan)
+    return scene.angular_momentum(state) if has_angular_momentum(scene) else jnp.full((), jnp.nan)
 
 
 def _walls_periodic_orbit(

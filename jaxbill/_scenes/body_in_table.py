@@ -443,7 +443,17 @@ class BodyInTable(eqx.Module):
 
     def angular_momentum(self, state: ArrayLike) -> jax.Array:
         """``M (x vy - y vx) + I omega`` about the origin, ``(...)``: conserved in a circle (the wall's force
-        is radial); a body that never turns gives the orbital part only."""
+        is radial); a body that never turns gives the orbital part only.
+
+        Raises:
+            TypeError: in a table without a centre (the strip between two walls: its walls exert torques about
+                every point, and the momentum it conserves is ``M vx``).
+        """
+        if not self.table.has_centre:
+            raise TypeError(
+                f"{type(self).__name__} has no conserved angular momentum: its table has no centre to take it "
+                "about (between two walls the conserved momentum is M vx)"
+            )
         state = jnp.asarray(state)
         x, y, vx, vy, omega = (state[..., i] for i in (0, 1, 3, 4, 5))
         orbital = self.body.mass * (x * vy - y * vx)

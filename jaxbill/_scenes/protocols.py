@@ -42,6 +42,7 @@ __all__ = [
     "RigidBodyColumn",
     "HasPeriodicSymmetry",
     "HasAngularMomentum",
+    "has_angular_momentum",
     "PERIODIC_SYMMETRIES",
     "SamplesStates",
     "SectionChart",
@@ -391,6 +392,13 @@ def energy(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float[Array, "*
     return scene.energy(_states(scene, state))
 
 
+def has_angular_momentum(scene) -> bool:
+    """Whether ``scene`` has an angular momentum about an origin (a body in a table with a centre; the 3D
+    walls' ``L_z``): a body between two walls in the plane has none."""
+    table = getattr(scene, "table", None)
+    return isinstance(scene, HasAngularMomentum) and getattr(table, "has_centre", True)
+
+
 def angular_momentum(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float[Array, "*batch"]:
     """The scene's angular momentum (``StickInCircle``: about the origin; ``StickBetweenWalls3D``: ``L_z``).
 
@@ -398,7 +406,7 @@ def angular_momentum(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float
         TypeError: for a scene without one (``StickBetweenWalls2D``: the walls
             exert torques; its conserved momentum is ``M vx``).
     """
-    if not isinstance(scene, HasAngularMomentum):
+    if not has_angular_momentum(scene):
         raise TypeError(f"{type(scene).__name__} has no conserved angular momentum")
     return scene.angular_momentum(_states(scene, state))
 

@@ -95,7 +95,8 @@ class Dumbbell(Body):
             raise ValueError(f"inertia = {self.inertia} makes a {kind!r} dumbbell, not {self.kind!r}: build a new one")
 
     def parameters_are_valid(self):
-        ok = (self.l1 > 0) & (self.l2 > 0) & jnp.isfinite(self.l1) & jnp.isfinite(self.l2)
+        # A zero arm is a valid limit (the stick shrunk to a spinning point) inside jit, as the circle's ell >= 0.
+        ok = (self.l1 >= 0) & (self.l2 >= 0) & jnp.isfinite(self.l1) & jnp.isfinite(self.l2)
         ok &= (self.mass > 0) & jnp.isfinite(self.mass)
         if self.kind == "rotor":
             ok &= (self.inertia > 0) & jnp.isfinite(self.inertia)

@@ -238,6 +238,8 @@ class Table(eqx.Module):
     name: ClassVar[str] = "the table"
     # The wall's force always points at the origin (a circle about it): the angular momentum is conserved.
     conserves_angular_momentum: ClassVar[bool] = False
+    # A table with a centre (a bounded one) takes angular momentum about its origin; the strip has none.
+    has_centre: ClassVar[bool] = True
 
     @property
     @abc.abstractmethod

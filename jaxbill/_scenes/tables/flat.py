@@ -116,6 +116,7 @@ class Strip(Table):
 
     name: ClassVar[str] = "the walls"
     section_names: ClassVar[tuple[str, ...]] = ("floor",)
+    has_centre: ClassVar[bool] = False
 
     def __init__(self, h):
         self.h = jnp.asarray(h, dtype=jnp.float64)
