@@ -293,10 +293,13 @@ def test_pallas_kernel_matches_the_xla_state_machine_collision_by_collision(name
     contacts equal the XLA driver's to rounding."""
     scene = scenes()[name]
     states = jnp.asarray(start_states(scene, 32, seed=11))
+    # Compiled once, outside the loop: a new lambda each time compiled both programs again.
+    kernel_step = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 1, interpret=True))
+    xla_step = jax.jit(lambda s, c: _lanes.run_block(_lanes.Plan("final"), scene, s, c, 0, 1))
     for _ in range(3):
         carry = _lanes.fresh_carry(scene, states)
-        kernel = jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 1, interpret=True))(states, carry)
-        xla, _ = jax.jit(lambda s, c: _lanes.run_block(_lanes.Plan("final"), scene, s, c, 0, 1))(states, carry)
+        kernel = kernel_step(states, carry)
+        xla, _ = xla_step(states, carry)
         np.testing.assert_array_equal(np.asarray(kernel.contact_counts), np.asarray(xla.contact_counts))
         np.testing.assert_allclose(np.asarray(kernel.time), np.asarray(xla.time), rtol=1e-14)
         scale = np.max(np.abs(np.asarray(xla.state)), axis=1, keepdims=True)
