@@ -148,10 +148,11 @@ def test_a_search_out_of_steps_is_reported_and_stays_reported(one_root_step):
 # NON_FINITE: a NaN injected mid-run
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("driver", DRIVERS)
-def test_a_nan_injected_mid_run_is_non_finite(driver):
+@pytest.mark.parametrize("make_scene", [lens, rotor], ids=["closed form", "searched"])
+def test_a_nan_injected_mid_run_is_non_finite(driver, make_scene):
     """A run stopped after 10 collisions resumes from a checkpoint whose orbit 1 has turned NaN: that orbit
     reports ``NON_FINITE`` (and NaN), the others finish bitwise as if nothing had happened."""
-    scene = lens()
+    scene = make_scene()
     states = starts(scene, 3)
     whole = jb.run(scene, states, 20, driver=driver)
     first = jb.run(scene, states, 10, driver=driver)

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbill._engine.results import first_failure, start_result
+from jaxbill._engine.results import collision_status, first_failure, start_result
 from jaxbill._engine.step import NO_CONTACT, Collision
 
 # Contact codes counted one by one in the running statistics: every scene's codes
@@ -189,6 +189,11 @@ class Bookkeeping:
         self.codes = tallied_codes(scene) if plan.statistics else ()
         self.drift_of = energy_drift(scene, states0) if plan.statistics else None
         self.statistics = plan.statistics
+        # A closed-form contact time fails only as NaN (non-finite) or inf (no wall), and an orbit's time
+        # keeps either from then on (a NaN absorbs every later flight, a flight with no wall repeats): its
+        # result is read from its time once per chunk. A searched one may also run out of steps or be
+        # refused, which only the collision knows.
+        self.status_per_collision = scene.searches_for_roots
 
     def running(self, carry: Carry, state: Any, shape: tuple[int, ...] = ()) -> Running:
         """The running values at the start of a chunk from ``carry``, the state as the driver keeps it
@@ -211,8 +216,16 @@ class Bookkeeping:
             time=chosen(running.time + collision.dt, running.time),
             max_energy_error=error,
             tally=tally,
-            result=first_failure(running.result, collision.status, collided),
+            result=first_failure(running.result, collision.status, collided)
+            if self.status_per_collision
+            else running.result,
         )
+
+    def result(self, running: Running):
+        """The orbits' result codes at the end of a chunk that ended at ``running``."""
+        if self.status_per_collision:
+            return running.result
+        return first_failure(running.result, collision_status(running.time, True))
 
     def carry(self, carry: Carry, running: Running, collisions: Any, state: Any) -> Carry:
         """The carry after a chunk of ``collisions`` per orbit that ended at ``running`` (``state``: its
@@ -220,7 +233,7 @@ class Bookkeeping:
         counts = carry.contact_counts
         if self.statistics:
             counts = add_tally(counts, self.codes, running.tally, collisions)
-        return Carry(state, running.time, running.max_energy_error, counts, running.result)
+        return Carry(state, running.time, running.max_energy_error, counts, self.result(running))
 
 
 # -- records ---------------------------------------------------------------------------

@@ -124,7 +124,7 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
         state_out[i, :] = running.state[i]
     time_out[...] = running.time
     error_out[...] = running.max_energy_error
-    result_out[...] = running.result
+    result_out[...] = books.result(running)
     so_far = [counts_ref[k, :] for k in range(len(CONTACT_CODES) + 1)]
     for k, row in enumerate(add_tally_to_bins(so_far, books.codes, running.tally, done.astype(jnp.int64))):
         counts_out[k, :] = row
