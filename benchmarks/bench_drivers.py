@@ -11,7 +11,7 @@ the lockstep driver (a vmapped loop of whole collisions) and the lane state
 machine in one XLA loop, timed in alternation in this one process, medians;
 "default" names the driver ``jb.run`` picks for the scene. The root steps per collision come from the
 engine's own search (``jaxbill._engine.step``), counted on the first 256 orbits.
-This is the evidence behind ``jaxbill._engine.lanes.choose_driver``'s default on a
+This is the evidence behind ``jaxbill._engine.drivers.choose_driver``'s default on a
 CPU. The Pallas driver is for GPUs (``bench_gpu.py``); here it would run in
 Pallas's interpreter.
 """
@@ -29,7 +29,7 @@ import numpy as np
 
 import jaxbill as jb
 from jaxbill._engine import step as _step
-from jaxbill._engine.lanes import choose_driver
+from jaxbill._engine.drivers import choose_driver
 
 INF = float("inf")
 
@@ -84,8 +84,8 @@ def root_steps_per_collision(scene, states, collisions):
             lane = jax.lax.while_loop(
                 lambda l: ~l.found & (l.steps < _step.MAX_ROOT_STEPS), lambda l: _step.search_step(scene, l), lane
             )
-            new_state, _, _ = _step.end_flight(scene, lane, None)
-            return (_step.stacked(new_state), total + lane.steps), None
+            collision = _step.end_flight(scene, lane, None)
+            return (_step.stacked(collision.state), total + lane.steps), None
 
         (_, total), _ = jax.lax.scan(one, (state, jnp.int32(0)), length=collisions)
         return total

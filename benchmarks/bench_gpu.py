@@ -212,7 +212,7 @@ def main():
 def whole_blocks(states, block=None):
     """``states`` padded to whole kernel blocks (the bare kernel takes no other batch) with copies of
     the first orbit, as ``jb.run`` pads it; rates count the real orbits alone."""
-    from jaxbill._engine.lanes import PALLAS_BLOCK
+    from jaxbill._engine.pallas import BLOCK as PALLAS_BLOCK
     from jaxbill._engine.sharding import pad_batch
 
     block = block or PALLAS_BLOCK
@@ -222,11 +222,11 @@ def whole_blocks(states, block=None):
 def bare_kernel(scene, states, n, **tuning):
     """A function of no argument: ``pallas_final`` over ``states`` (padded to whole blocks, on the
     device already), ``n`` collisions in one call, waited for."""
-    from jaxbill._engine import lanes
+    from jaxbill._engine.chunks import fresh_carry
     from jaxbill._engine.pallas import pallas_final
 
     padded = jax.numpy.asarray(whole_blocks(states, tuning.get("block")))
-    carry = lanes.fresh_carry(scene, padded)
+    carry = fresh_carry(scene, padded)
     kernel = jax.jit(lambda s, c: pallas_final(scene, s, c, n, **tuning).state)
     return lambda: jax.block_until_ready(kernel(padded, carry))
 
@@ -234,7 +234,7 @@ def bare_kernel(scene, states, n, **tuning):
 def kernel_variants(jb, baseline, cuda_baseline, orbits, n, rounds):
     """The bare kernel (``pallas_final``, one call) at several tunings, beside the numba CUDA kernel;
     and with its bookkeeping (energy drift, contact tally) left out, to see what that costs."""
-    from jaxbill._engine import pallas
+    from jaxbill._engine import chunks
 
     tunings = [
         dict(block=32, num_warps=1, rare_by_block=False),
@@ -265,13 +265,13 @@ def kernel_variants(jb, baseline, cuda_baseline, orbits, n, rounds):
             name = ", ".join(f"{k} {v}" for k, v in tuning.items())
             rows.append((name, *timed(bare_kernel(scene, states, n, **tuning), rounds)))
         # The same kernel with its bookkeeping left out (its results then lack drift and tally).
-        saved = pallas.energy_drift, pallas.tally_contact
-        pallas.energy_drift = lambda scene, state0: lambda state: jax.numpy.zeros_like(state[0])
-        pallas.tally_contact = lambda codes, counts, contact, collided: counts
+        saved = chunks.energy_drift, chunks.tally_contact
+        chunks.energy_drift = lambda scene, state0: lambda state: jax.numpy.zeros_like(state[0])
+        chunks.tally_contact = lambda codes, counts, contact, collided: counts
         try:
             rows.append(("block 32, no drift or tally", *timed(bare_kernel(scene, states, n), rounds)))
         finally:
-            pallas.energy_drift, pallas.tally_contact = saved
+            chunks.energy_drift, chunks.tally_contact = saved
         for name, first, median in rows:
             rate = collisions / median
             print(f"| {label} | {name} | {first:.2f} | {median:.4f} | {rate:.3g} | {rate / peer:.2f} |", flush=True)

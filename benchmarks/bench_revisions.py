@@ -1,7 +1,8 @@
 """jaxbill against an earlier revision of itself, in one process: did a change make a scene slower?
 
 Run:  python benchmarks/bench_revisions.py --before REV [--rounds N] [--orbit-collisions N]
-                                           [--batch B] [--batch-collisions N] [--results PATH]
+                                           [--batch B] [--batch-collisions N] [--drivers]
+                                           [--scenes SUBSTRING ...] [--results PATH]
 
 The working tree's ``jaxbill`` and the package as it was at the git revision
 ``REV`` (extracted with ``git archive`` into a temporary folder and renamed
@@ -13,7 +14,11 @@ default inertia): one orbit of ``--orbit-collisions`` collisions, every state
 recorded, for the spinning stick at ell = 1.9 and 1.0, the static lens, the
 circle billiard, the stick between walls (h = 3, ell = 1) and the stick in an
 ellipse; and a batch of ``--batch`` orbits of ``--batch-collisions``
-collisions, final states only (``jb.run``), on one device. Each pair must
+collisions, final states only (``jb.run``), on one device. ``--drivers`` adds
+the same batch run by each CPU driver (``serial``, ``lockstep``, ``lanes``)
+and recording every 10th state (``record="states"``, the scene's default
+driver); ``--scenes`` keeps the scenes whose name holds one of the words
+given. Each pair must
 also agree: the same contacts and states within the orbit's float64 horizon
 (a change of arithmetic may change the last bits, and a chaotic orbit then
 parts from its earlier self), which the report checks and prints.
@@ -77,6 +82,8 @@ def main() -> None:
     parser.add_argument("--orbit-collisions", type=int, default=100_000)
     parser.add_argument("--batch", type=int, default=1024)
     parser.add_argument("--batch-collisions", type=int, default=200)
+    parser.add_argument("--drivers", action="store_true", help="also time each CPU driver and a recorded run")
+    parser.add_argument("--scenes", nargs="*", default=None, help="only scenes whose name holds one of these")
     parser.add_argument("--results", default=None)
     args = parser.parse_args()
 
@@ -102,6 +109,8 @@ def main() -> None:
         rows = []
         after_scenes, before_scenes = scenes(after_jb), scenes(before_jb)
         for name in after_scenes:
+            if args.scenes and not any(word in name for word in args.scenes):
+                continue
             new, old = after_scenes[name], before_scenes[name]
             start = np.asarray(after_jb.sample_energy_shell(new, 1, seed=1)[0][0])
             starts = after_jb.sample_energy_shell(new, args.batch, seed=2)[0]
@@ -113,7 +122,17 @@ def main() -> None:
             def batch(jb, scene):
                 return lambda: jb.run(scene, starts, nb)
 
-            for workload, maker, collisions in (("one orbit", one, n), ("batch", batch, nb * args.batch)):
+            def by_driver(driver):
+                return lambda jb, scene: lambda: jb.run(scene, starts, nb, driver=driver)
+
+            def recorded(jb, scene):
+                return lambda: jb.run(scene, starts, nb, record="states", every=10)
+
+            workloads = [("one orbit", one, n), ("batch", batch, nb * args.batch)]
+            if args.drivers:
+                workloads += [(f"batch, {d}", by_driver(d), nb * args.batch) for d in ("serial", "lockstep", "lanes")]
+                workloads.append(("batch, every 10th state", recorded, nb * args.batch))
+            for workload, maker, collisions in workloads:
                 timing = interleaved({"after": maker(after_jb, new), "before": maker(before_jb, old)}, args.rounds)
                 if workload == "one orbit":
                     a, b = after_jb.orbit(new, start, 400), before_jb.orbit(old, start, 400)

@@ -77,8 +77,8 @@ API_PAGES = {
     ),
     "api/orbits.md": (
         "Orbits and invariants",
-        "The collision map, orbits and the quantities they conserve.",
-        ["collide", "orbit", "Orbit", "energy", "angular_momentum", "end_points"],
+        "The collision map, orbits, what stopped them (result codes) and the quantities they conserve.",
+        ["collide", "orbit", "Orbit", "Result", "energy", "angular_momentum", "end_points"],
     ),
     "api/runs.md": (
         "Long runs and devices",
@@ -220,6 +220,7 @@ ENGINE_MEMBERS = (
     "closed_form_contact",
     "collide_at",
     "contact_codes",
+    "checks_curvature",
     # the capabilities the analyses ask for (jb.explore, jb.check, jb.sample_energy_shell,
     # the tangent maps: the user calls those)
     "section_chart",

@@ -50,6 +50,7 @@ from jaxbill._engine.collision import (  # noqa: E402
     orbit,
     orbit_sharded,
 )
+from jaxbill._engine.results import Result  # noqa: E402
 from jaxbill._engine.sharding import orbit_mesh  # noqa: E402
 from jaxbill._engine.tangent import dynamical_frame, dynamical_indices, phase_velocity, tangent_map  # noqa: E402
 from jaxbill._explorer import explore  # noqa: E402
@@ -127,6 +128,7 @@ __all__ = [
     "collide",
     "orbit",
     "Orbit",
+    "Result",
     "run",
     "Run",
     "Section",

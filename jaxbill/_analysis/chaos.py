@@ -14,13 +14,14 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._analysis.lyapunov import grown, log_of, no_growth
 from jaxbill._engine.collision import _check_eagerly, _poison_if
-from jaxbill._engine.lanes import map_over_orbits
+from jaxbill._engine.drivers import map_over_orbits
+from jaxbill._engine.results import first_failure, start_result
 from jaxbill._engine.step import orbit_constants
-from jaxbill._engine.tangent import dynamical_size, push_frame
+from jaxbill._engine.tangent import dynamical_size, pushed_frame
 from jaxbill._engine.validation import check_count
 from jaxbill._scenes.protocols import SamplesStates, Scene
 
@@ -32,12 +33,15 @@ class FiniteTimeLyapunov(eqx.Module):
         per_time: ``(B,)`` largest exponent per unit time after ``n`` collisions.
         per_collision: ``(B,)`` the same growth per collision.
         time: ``(B,)`` elapsed time over the ``n`` collisions.
+        result: ``(B,)`` int32: why each orbit stopped, or what went wrong first
+            (``jb.Result``; ``FINISHED`` when all went well).
         n: number of collisions (static).
     """
 
     per_time: Float[Array, " B"]
     per_collision: Float[Array, " B"]
     time: Float[Array, " B"]
+    result: Int[Array, " B"]
     n: int = eqx.field(static=True)
 
 
@@ -45,23 +49,26 @@ def _ftle_one(scene, state0, n, vector0):
     constants = orbit_constants(scene, state0)
 
     def step(carry, _):
-        state, v, growth, t = carry
-        state, dt, _, pushed = push_frame(scene, state, v[:, None], flow=True, constants=constants)
-        v = pushed[:, 0]
+        state, v, growth, t, result = carry
+        pushed = pushed_frame(scene, state, v[:, None], flow=True, constants=constants)
+        v = pushed.frame[:, 0]
         norm = jnp.linalg.norm(v)
-        return (state, v / norm, grown(growth, norm), t + dt), None
+        return (pushed.state, v / norm, grown(growth, norm), t + pushed.dt, first_failure(result, pushed.status)), None
 
-    init = (state0, vector0, no_growth(), jnp.zeros(()))
-    (_, _, growth, t), _ = jax.lax.scan(step, init, None, length=n)
+    valid = scene.is_valid(state0)
+    init = (state0, vector0, no_growth(), jnp.zeros(()), start_result(valid))
+    (_, _, growth, t, result), _ = jax.lax.scan(step, init, None, length=n)
     log_growth = log_of(growth)
     # Later states come from the map itself; only the start needs checking.
-    return _poison_if(~scene.is_valid(state0), log_growth / t, log_growth / n, t)
+    return (*_poison_if(~valid, log_growth / t, log_growth / n, t), result)
 
 
 @eqx.filter_jit
 def _ftle_jit(scene, states, n, vector0):
-    per_time, per_collision, t = map_over_orbits(scene, _ftle_one, (None, 0, None, None))(scene, states, n, vector0)
-    return FiniteTimeLyapunov(per_time=per_time, per_collision=per_collision, time=t, n=n)
+    per_time, per_collision, t, result = map_over_orbits(scene, _ftle_one, (None, 0, None, None))(
+        scene, states, n, vector0
+    )
+    return FiniteTimeLyapunov(per_time=per_time, per_collision=per_collision, time=t, result=result, n=n)
 
 
 def finite_time_lyapunov(

@@ -68,9 +68,10 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import pallas
 from jaxbill._engine.collision import _check_eagerly, _poison_if
-from jaxbill._engine.lanes import map_over_orbits
+from jaxbill._engine.drivers import map_over_orbits
+from jaxbill._engine.results import first_failure, start_result
 from jaxbill._engine.step import orbit_constants
-from jaxbill._engine.tangent import dynamical_size, push_frame, to_dynamical, to_state_space
+from jaxbill._engine.tangent import dynamical_size, pushed_frame, to_dynamical, to_state_space
 from jaxbill._engine.validation import (
     MAX_STORED_COUNT,
     check_count,
@@ -99,6 +100,8 @@ class FastLyapunovIndicator(eqx.Module):
             every orbit of a batch: no batch axis).
         times: ``(H,)`` elapsed flight time at each checkpoint.
         time: ``()`` elapsed flight time over the ``n`` collisions.
+        result: ``()`` int32: why the orbit stopped, or what went wrong first
+            (``jb.Result``; ``FINISHED`` when all went well).
         n: number of collisions (static).
         per: ``"collision"`` or ``"time"``: the clock and tangent map used (static).
     """
@@ -109,6 +112,7 @@ class FastLyapunovIndicator(eqx.Module):
     collisions: Int[Array, " H"]
     times: Float[Array, "*B H"]
     time: Float[Array, "*B"]
+    result: Int[Array, "*B"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
 
@@ -128,6 +132,8 @@ class Megno(eqx.Module):
         collisions: ``(H,)`` int32, collisions at each checkpoint (no batch axis).
         times: ``(H,)`` elapsed flight time at each checkpoint.
         time: ``()`` elapsed flight time over the ``n`` collisions.
+        result: ``()`` int32: why the orbit stopped, or what went wrong first
+            (``jb.Result``; ``FINISHED`` when all went well).
         n: number of collisions (static).
         per: ``"collision"`` or ``"time"`` (static).
     """
@@ -138,6 +144,7 @@ class Megno(eqx.Module):
     collisions: Int[Array, " H"]
     times: Float[Array, "*B H"]
     time: Float[Array, "*B"]
+    result: Int[Array, "*B"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
 
@@ -205,14 +212,14 @@ def _indicators_one(scene, state0, tangent0, n, per, n_history):
     constants = orbit_constants(scene, state0)
 
     def collision(carry, _):
-        state, v, t, k, sums = carry
-        state, dt, _, pushed = push_frame(scene, state, v[:, None], flow=flow, constants=constants)
-        v = pushed[:, 0]
+        state, v, t, k, sums, result = carry
+        pushed = pushed_frame(scene, state, v[:, None], flow=flow, constants=constants)
+        v = pushed.frame[:, 0]
         stretch = jnp.linalg.norm(v)
-        t, k = t + dt, k + 1
+        t, k = t + pushed.dt, k + 1
         tau = t if flow else k.astype(jnp.float64)
         sums = _accumulate(sums, jnp.log(stretch), tau)
-        return (state, v / stretch, t, k, sums), None
+        return (pushed.state, v / stretch, t, k, sums, first_failure(result, pushed.status)), None
 
     n_hist = max(1, min(n_history, n))
     stride = n // n_hist
@@ -220,18 +227,18 @@ def _indicators_one(scene, state0, tangent0, n, per, n_history):
 
     def checkpoint(carry, _):
         carry, _ = jax.lax.scan(collision, carry, None, length=stride)
-        _, _, t, _, (_, fli, tau, _, _, area) = carry
+        _, _, t, _, (_, fli, tau, _, _, area), _ = carry
         return carry, (fli, _mean_megno(area, tau), t)
 
     zero = jnp.zeros((), jnp.float64)
-    carry = (state0, v0, zero, jnp.zeros((), jnp.int32), (zero, zero, zero, zero, zero, zero))
+    valid = scene.is_valid(state0)
+    carry = (state0, v0, zero, jnp.zeros((), jnp.int32), (zero, zero, zero, zero, zero, zero), start_result(valid))
     carry, (fli_hist, megno_hist, t_hist) = jax.lax.scan(checkpoint, carry, None, length=n_hist)
     carry, _ = jax.lax.scan(collision, carry, None, length=rest)
-    _, _, t, _, (log_norm, fli, tau, _, y, area) = carry
+    _, _, t, _, (log_norm, fli, tau, _, y, area), result = carry
     # Later states come from the map itself; only the start needs checking.
-    return _poison_if(
-        ~scene.is_valid(state0), fli, log_norm, fli_hist, _mean_megno(area, tau), y, megno_hist, t_hist, t
-    )
+    poisoned = _poison_if(~valid, fli, log_norm, fli_hist, _mean_megno(area, tau), y, megno_hist, t_hist, t)
+    return (*poisoned, result)
 
 
 @eqx.filter_jit
@@ -340,9 +347,17 @@ def fli(
             not valid starts.
     """
     n, counts, out = _run(scene, states, n, per, tangent0, n_history)
-    value, log_norm, fli_hist, _, _, _, t_hist, t = out
+    value, log_norm, fli_hist, _, _, _, t_hist, t, result = out
     return FastLyapunovIndicator(
-        value=value, log_norm=log_norm, history=fli_hist, collisions=counts, times=t_hist, time=t, n=n, per=per
+        value=value,
+        log_norm=log_norm,
+        history=fli_hist,
+        collisions=counts,
+        times=t_hist,
+        time=t,
+        result=result,
+        n=n,
+        per=per,
     )
 
 
@@ -372,9 +387,17 @@ def megno(
         ValueError: as ``fli``.
     """
     n, counts, out = _run(scene, states, n, per, tangent0, n_history)
-    _, _, _, value, y, megno_hist, t_hist, t = out
+    _, _, _, value, y, megno_hist, t_hist, t, result = out
     return Megno(
-        value=value, instantaneous=y, history=megno_hist, collisions=counts, times=t_hist, time=t, n=n, per=per
+        value=value,
+        instantaneous=y,
+        history=megno_hist,
+        collisions=counts,
+        times=t_hist,
+        time=t,
+        result=result,
+        n=n,
+        per=per,
     )
 
 

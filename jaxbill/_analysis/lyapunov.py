@@ -9,9 +9,10 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import _check_eagerly, _poison_if
-from jaxbill._engine.lanes import map_over_orbits
+from jaxbill._engine.drivers import map_over_orbits
+from jaxbill._engine.results import first_failure, start_result
 from jaxbill._engine.step import orbit_constants
-from jaxbill._engine.tangent import dynamical_size, push_frame
+from jaxbill._engine.tangent import dynamical_size, pushed_frame
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
 from jaxbill._scenes.protocols import Scene
 
@@ -57,6 +58,8 @@ class LyapunovSpectrum(eqx.Module):
         collisions: ``(H,)`` int, number of collisions at each checkpoint.
         times: ``(H,)`` elapsed flight time at each checkpoint.
         time: ``()`` total elapsed time over the ``n`` collisions.
+        result: ``()`` int32: why the orbit stopped, or what went wrong first
+            (``jb.Result``; ``FINISHED`` when all went well).
         n: number of collisions (static).
         per: ``"time"`` or ``"collision"`` (static).
         paired: whether the lower half of the spectrum is the upper half's
@@ -72,6 +75,7 @@ class LyapunovSpectrum(eqx.Module):
     collisions: Int[Array, "*batch H"]
     times: Float[Array, "*batch H"]
     time: Float[Array, "*batch"]
+    result: Int[Array, "*batch"]
     n: int = eqx.field(static=True)
     per: str = eqx.field(static=True)
     paired: bool = eqx.field(static=True)
@@ -137,21 +141,22 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
     def collision(carry, _):
         # The frame's coordinates in the dynamical directions at the current
         # state, carried to those at the next one (jaxbill._engine.tangent).
-        state, q, t = carry
-        state, dt, _, q = push_frame(scene, state, q, flow=flow, constants=constants)
-        return (state, q, t + dt), None
+        state, q, t, result = carry
+        pushed = pushed_frame(scene, state, q, flow=flow, constants=constants)
+        return (pushed.state, pushed.frame, t + pushed.dt, first_failure(result, pushed.status)), None
 
     def qr_step(carry, _):
-        state, q, t, growth = carry
-        (state, q, t), _ = jax.lax.scan(collision, (state, q, t), None, length=qr_every)
+        state, q, t, result, growth = carry
+        (state, q, t, result), _ = jax.lax.scan(collision, (state, q, t, result), None, length=qr_every)
         q, diag = _orthonormalised(q)
-        return (state, q, t, grown(growth, diag)), None
+        return (state, q, t, result, grown(growth, diag)), None
 
     def qr_steps(carry, count):
         """``count`` (static) QR steps; their growth, logged once, added to the logs."""
-        state, q, t, logs = carry
-        (state, q, t, growth), _ = jax.lax.scan(qr_step, (state, q, t, no_growth(logs.shape)), None, length=count)
-        return state, q, t, logs + log_of(growth)
+        state, q, t, result, logs = carry
+        start = (state, q, t, result, no_growth(logs.shape))
+        (state, q, t, result, growth), _ = jax.lax.scan(qr_step, start, None, length=count)
+        return state, q, t, result, logs + log_of(growth)
 
     n_qr = n // qr_every
     n_hist = max(1, min(n_history, n_qr))
@@ -160,15 +165,16 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
 
     def checkpoint(carry, _):
         carry = qr_steps(carry, stride)
-        _, _, t, logs = carry
+        _, _, t, _, logs = carry
         return carry, (logs, t)
 
     k = frame0.shape[1]
-    carry = (state0, frame0, jnp.zeros((), jnp.float64), jnp.zeros((k,), jnp.float64))
+    valid = scene.is_valid(state0)
+    carry = (state0, frame0, jnp.zeros((), jnp.float64), start_result(valid), jnp.zeros((k,), jnp.float64))
     carry, (logs_hist, t_hist) = jax.lax.scan(checkpoint, carry, None, length=n_hist)
     if rest:
         carry = qr_steps(carry, rest)
-    _, _, t, logs = carry
+    _, _, t, result, logs = carry
     counts = (jnp.arange(1, n_hist + 1) * stride * qr_every).astype(jnp.int32)
     if flow:
         history = logs_hist / t_hist[:, None]
@@ -181,9 +187,17 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
     history = _descending(history)
     exponents = _descending(exponents)
     # Later states come from the map itself; only the start needs checking.
-    exponents, history, t_hist, t = _poison_if(~scene.is_valid(state0), exponents, history, t_hist, t)
+    exponents, history, t_hist, t = _poison_if(~valid, exponents, history, t_hist, t)
     return LyapunovSpectrum(
-        exponents=exponents, history=history, collisions=counts, times=t_hist, time=t, n=n, per=per, paired=partners > 0
+        exponents=exponents,
+        history=history,
+        collisions=counts,
+        times=t_hist,
+        time=t,
+        result=result,
+        n=n,
+        per=per,
+        paired=partners > 0,
     )
 
 

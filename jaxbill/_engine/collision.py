@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-import functools
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh
 from jaxtyping import Array, ArrayLike, Float, Int
 
-from jaxbill._engine import lanes
-from jaxbill._engine.sharding import DeviceChoice, orbit_mesh, pad_batch, padded_batch_size, shard_over_orbits, to_mesh
-from jaxbill._engine.step import advance, advance_components, components, orbit_constants, stacked, vmapped_over_lanes
+from jaxbill._engine.chunks import Plan, fresh_carry
+from jaxbill._engine.drivers import Batch, choose_driver, chunk_function
+from jaxbill._engine.serial import orbit_chunk
+from jaxbill._engine.sharding import DeviceChoice
+from jaxbill._engine.step import advance, orbit_constants
 from jaxbill._engine.validation import (
     check_orbit_length,
     check_scene,
@@ -23,7 +22,7 @@ from jaxbill._engine.validation import (
     is_concrete,
     require_x64,
 )
-from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, Scene
+from jaxbill._scenes.protocols import SEVERAL_CONTACTS, Scene
 
 CORNER = SEVERAL_CONTACTS  # the stick in a circle's name for it: both ends at once
 
@@ -39,22 +38,15 @@ class Orbit(eqx.Module):
             reaches a wall: ``t = inf`` from then on).
         state: ``(n, S)`` the state just after each collision
             (``S = scene.state_size``).
+        result: ``()`` int32: why the orbit stopped, or what went wrong first
+            (``jb.Result``: ``FINISHED``, ``INVALID_START``, ``NO_WALL``,
+            ``ROOT_STEPS_EXHAUSTED``, ``NON_FINITE``, ``BOUND_VIOLATED``).
     """
 
     t: Float[Array, "*batch n"]
     contact: Int[Array, "*batch n"]
     state: Float[Array, "*batch n S"]
-
-
-def step_function(scene: Scene, state0: jax.Array):
-    """The collision map of the orbit from ``state0`` as a function of the state alone.
-
-    Returns ``state -> (new_state, dt, contact)`` for states known to be valid
-    (check ``scene.is_valid(state0)`` once; later states come from the map).
-    Quantities the scene holds fixed along an orbit are computed here once.
-    """
-    constants = orbit_constants(scene, state0)
-    return lambda state: advance(scene, state, constants)
+    result: Int[Array, "*batch"]
 
 
 def _poison_if(bad, *arrays):
@@ -65,7 +57,7 @@ def _poison_if(bad, *arrays):
 
 def _collide(scene: Scene, state: jax.Array):
     state = jnp.asarray(state, dtype=jnp.float64)
-    return _poison_if(~scene.is_valid(state), *step_function(scene, state)(state))
+    return _poison_if(~scene.is_valid(state), *advance(scene, state, orbit_constants(scene, state)))
 
 
 def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
@@ -156,54 +148,36 @@ def _check_eagerly(scene, state, *, single: bool = False) -> None:
             check_state(scene, state)
 
 
-def _orbit_scan(scene: Scene, state0: jax.Array, n: int) -> Orbit:
-    state0 = jnp.asarray(state0, dtype=jnp.float64)
-    constants = orbit_constants(scene, state0)
+def _orbit_plan(n: int) -> Plan:
+    """A chunk that records every collision of ``n`` (and keeps no statistics: an ``Orbit`` has none)."""
+    return Plan("states", every=1, rows=n, statistics=False)
 
-    def step(carry, _):
-        parts, t = carry
-        new_parts, dt, contact = advance_components(scene, parts, constants)
-        t = t + dt
-        return (new_parts, t), (t, contact, stacked(new_parts))
 
-    start = (components(state0), jnp.zeros((), jnp.float64))
-    _, (t, contact, states) = jax.lax.scan(step, start, length=n)
-    # Later states come from the map itself; only the start needs checking.
-    t, contact, states = _poison_if(~scene.is_valid(state0), t, contact, states)
-    # After a root search that hit its step bound (t NaN from then on), the
-    # map runs on NaN states: their contacts mean nothing.
-    contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
-    return Orbit(t=t, contact=contact, state=states)
+def _orbit_of(carry, records) -> Orbit:
+    t, contact, states = records
+    return Orbit(t=t, contact=contact, state=states, result=carry.result)
+
+
+def _orbit_single(scene: Scene, state0: jax.Array, n: int) -> Orbit:
+    """``jb.orbit`` of one orbit ``(S,)``: one chunk of ``n`` collisions (scans: differentiable both ways)."""
+    return _orbit_of(*orbit_chunk(_orbit_plan(n), scene, state0, fresh_carry(scene, state0), 0, n))
 
 
 def _orbit_batch(scene: Scene, states0: jax.Array, n: int, driver: str = "serial") -> Orbit:
-    """``jb.orbit`` of a batch ``(B, S)`` on one device: orbit after orbit, or in lanes of ``scene.batch_chunk``."""
-    if driver == "serial":
-        return jax.lax.map(lambda state0: _orbit_scan(scene, state0, n), states0)
+    """``jb.orbit`` of a batch ``(B, S)`` on one device: one chunk of the driver, in lanes of at most
+    ``scene.batch_chunk`` orbits (a smaller batch is one narrower lane)."""
     batch, size = states0.shape
-    chunk = max(1, min(batch, scene.batch_chunk))
-    pad = (-batch) % chunk
-    padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], (pad, size))])
-    if driver == "lockstep":
-        run_chunk = vmapped_over_lanes(_orbit_scan, in_axes=(None, 0, None))
-        out = jax.lax.map(lambda s: run_chunk(scene, s, n), padded.reshape(-1, chunk, size))
-        return jax.tree_util.tree_map(lambda a: a.reshape(-1, *a.shape[2:])[:batch], out)
-    plan = lanes.Plan("states", every=1, rows=n)
-    blocks = lanes.run_blocks(plan, chunk if jax.default_backend() == "cpu" else None)
-    _, (t, contact, states) = blocks(scene, padded, lanes.fresh_carry(scene, padded), 0, n)
-    invalid = ~jax.vmap(scene.is_valid)(padded)
-    t, contact, states = (
-        jnp.where(invalid.reshape(-1, *([1] * (a.ndim - 1))), jnp.nan if a.dtype == jnp.float64 else 0, a)
-        for a in (t, contact, states)
-    )
-    contact = jnp.where(jnp.isnan(t), jnp.int32(NO_CONTACT), contact)
-    return Orbit(t=t[:batch], contact=contact[:batch], state=states[:batch])
+    width = 1 if driver == "serial" else max(1, min(batch, scene.batch_chunk))
+    padded = jnp.concatenate([states0, jnp.broadcast_to(states0[:1], ((-batch) % width, size))])
+    chunk = chunk_function(_orbit_plan(n), driver, width, interpret=jax.default_backend() == "cpu")
+    orbit = _orbit_of(*chunk(scene, padded, fresh_carry(scene, padded), 0, n))
+    return jax.tree.map(lambda a: a[:batch], orbit)
 
 
 @eqx.filter_jit
 def _orbit_jit(scene, state0, n, driver="serial"):
     if state0.ndim == 1:
-        return _orbit_scan(scene, state0, n)
+        return _orbit_single(scene, state0, n)
     return _orbit_batch(scene, state0, n, driver)
 
 
@@ -217,7 +191,7 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
             12), or a batch of them, shape ``(B, S)``.
         n: number of collisions (a Python int, static: each new ``n`` compiles).
         driver: for a batch, ``"serial"``, ``"lockstep"`` or ``"lanes"`` (see
-            ``jaxbill._engine.lanes.choose_driver``; ``"pallas"`` records no states
+            ``jaxbill._engine.drivers.choose_driver``; ``"pallas"`` records no states
             and stands for ``"lanes"`` here); ``None``, the default, picks
             the fastest for the scene on the platform (on a CPU ``"serial"``
             or ``"lockstep"`` by the scene's ``batch_chunk``, ``"lanes"`` on a
@@ -225,9 +199,11 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
 
     Returns:
         ``Orbit`` with ``t`` ``(n,)``, ``contact`` ``(n,)``, ``state`` ``(n, S)``
-        (with a leading ``B`` axis for a batch). Equivalent to ``n`` applications
-        of ``collide`` under ``lax.scan``; ``jax.vmap(orbit, in_axes=(None, 0,
-        None))`` gives orbit by orbit what single runs give.
+        and ``result`` ``()`` (with a leading ``B`` axis for a batch; ``B = 0``
+        gives empty arrays). Equivalent to ``n`` applications of ``collide``
+        under ``lax.scan``; ``jax.vmap(orbit, in_axes=(None, 0, None))`` gives
+        orbit by orbit what single runs give. It is one chunk of ``jb.run``
+        with ``record="states"``: the same orbits, bit for bit.
 
     A concrete batch is split over every device JAX shows (``jb.orbit_sharded``;
     on a CPU jaxbill shows one device per core), padded to whole lanes of the
@@ -241,7 +217,8 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
             overflow or underflow, an end outside a wall or on it and moving
             outwards, spin for a stick that cannot turn) or a batch of scenes
             (use ``jax.vmap``). Inside ``jit``/``vmap`` the value checks cannot
-            run; the result is poisoned with NaN instead (see ``collide``).
+            run; the result is poisoned with NaN instead (see ``collide``)
+            and ``result`` says ``INVALID_START``.
         RuntimeError: with ``jax_enable_x64`` turned off.
     """
     n = check_orbit_length(n)
@@ -249,13 +226,8 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
     concrete = is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene))
     if concrete and jnp.ndim(state0) == 2 and jax.process_count() == 1:
         return orbit_sharded(scene, state0, n, driver=driver)
-    chosen = lanes.choose_driver(scene, jax.devices()[0].platform, driver, record="states")
+    chosen = choose_driver(scene, jax.devices()[0].platform, driver, record="states")
     return _orbit_jit(scene, jnp.asarray(state0, dtype=jnp.float64), n, chosen)
-
-
-@functools.lru_cache(maxsize=32)
-def _sharded_orbit_function(mesh: Mesh, n: int, driver: str):
-    return shard_over_orbits(lambda scene, states0: _orbit_batch(scene, states0, n, driver), mesh, (False, True))
 
 
 def orbit_sharded(
@@ -278,7 +250,7 @@ def orbit_sharded(
             default): see ``jb.orbit``.
 
     Returns:
-        ``Orbit`` with fields ``(B, n)``, ``(B, n)`` and ``(B, n, S)``, as global
+        ``Orbit`` with fields ``(B, n)``, ``(B, n)``, ``(B, n, S)`` and ``(B,)``, as global
         arrays split over the devices along the orbit axis (in one process
         ``np.asarray`` gathers them; under ``jax.distributed`` each process
         reads the orbits it holds with ``host_rows``, or all of them with
@@ -295,10 +267,6 @@ def orbit_sharded(
     if states0.ndim != 2:
         raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
     _check_eagerly(scene, states0)
-    mesh = orbit_mesh(devices)
-    driver = lanes.choose_driver(scene, mesh.devices.flat[0].platform, driver, record="states")
-    batch = states0.shape[0]
-    padded = pad_batch(states0, padded_batch_size(batch, lanes.lane_width(scene, driver), mesh))
-    scene_on_mesh = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
-    result = _sharded_orbit_function(mesh, n, driver)(scene_on_mesh, to_mesh(padded, mesh, batched=True))
-    return jax.tree.map(lambda a: a[:batch], result) if padded.shape[0] != batch else result
+    batch = Batch(scene, states0, devices, driver, record="states")
+    orbit = _orbit_of(*batch.run_chunk(_orbit_plan(n), batch.fresh_carry(), 0, n))
+    return jax.tree.map(lambda a: a[: batch.batch], orbit) if batch.lanes != batch.batch else orbit

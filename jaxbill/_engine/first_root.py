@@ -49,10 +49,17 @@ time resolution (and every one is still proved).
 
 The loop is bounded by ``max_steps``; a search that hits the bound reports it
 (``ok = False``) instead of returning a root it did not prove.
+
+A scene may check its own bounds along the search (a user's table whose
+curvature bounds were estimated): where one fails it returns that gap as NaN,
+with a finite slope. The search then ends at once, as on any non-finite value,
+and, asked to (``refusals``), reports the gap index ``REFUSED``, so that the
+orbit's result says which it was.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -61,6 +68,9 @@ import jax.numpy as jnp
 
 # Stop when the root is bracketed to this many ulps of the time scale.
 _TIME_RESOLUTION_ULPS = 4.0
+
+# The gap index of a search that a scene refused to continue (a NaN gap with a finite slope).
+REFUSED = -1
 
 
 def _step_below(g, slope, lower_curv, rising_curv=None):
@@ -183,7 +193,14 @@ def _upper_step(gap, slope, curvature, window, margin, bounds: RootBounds):
     return jnp.where(s_hi <= window, s_hi, jnp.inf)
 
 
-def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array, curvatures: tuple | None = None):
+def root_step(
+    gaps: tuple,
+    slopes: tuple,
+    bounds: RootBounds,
+    t: jax.Array,
+    curvatures: tuple | None = None,
+    refusals: bool = False,
+):
     """One safe step of the search from time ``t``, given the K gaps and their slopes there.
 
     ``gaps`` and ``slopes`` are tuples of K arrays of one shape (one lane's
@@ -198,7 +215,9 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array, curv
     values, which end at once rather than make a batch wait out the step bound).
 
     ``curvatures`` (with ``bounds.jerk``): the gaps' second derivatives at
-    ``t``, for the sharper steps of the module docstring.
+    ``t``, for the sharper steps of the module docstring. ``refusals``
+    (static): the index of a search the scene refused (a NaN gap, its slope
+    finite) is ``REFUSED``.
 
     ``first_root`` and both drivers of the engine take exactly this step, so
     every path finds the same root in the same steps.
@@ -243,6 +262,9 @@ def root_step(gaps: tuple, slopes: tuple, bounds: RootBounds, t: jax.Array, curv
         finite = finite & jnp.isfinite(g) & jnp.isfinite(d)
     # A hopeless lane proves no root: its time is NaN (an infinite one stays: no root ever).
     t_next = jnp.where(finite | jnp.isinf(t_next), t_next, jnp.nan)
+    if refusals:
+        refused = [jnp.isnan(g) & jnp.isfinite(d) for g, d in zip(gaps, slopes, strict=True)]
+        index = jnp.where(functools.reduce(jnp.logical_or, refused), jnp.int32(REFUSED), index)
     return t_next, index, touching_now | converged | ~finite
 
 
@@ -255,6 +277,7 @@ def first_root(
     gaps_and_slopes: Callable[[jax.Array], tuple],
     bounds: RootBounds,
     max_steps: int,
+    refusals: bool = False,
 ):
     """First time ``t >= 0`` at which one of K gaps reaches zero while falling.
 
@@ -265,6 +288,7 @@ def first_root(
             time ``t``.
         bounds: the flight's curvature bounds, quiet interval and time scale.
         max_steps: static bound on the number of steps.
+        refusals: static: report a refused search's index as ``REFUSED`` (``root_step``).
 
     Returns:
         ``(t_root, index, steps, ok)``: the root (``inf`` when no gap ever
@@ -278,7 +302,7 @@ def first_root(
         # each fusion that uses them, contracting to FMA differently, so that
         # the same gap could test as touching in one place and not in another.
         gap, slope, curvature = with_curvatures(jax.lax.optimization_barrier(gaps_and_slopes(t)))
-        t_next, index, done = root_step(gap, slope, bounds, t, curvature)
+        t_next, index, done = root_step(gap, slope, bounds, t, curvature, refusals)
         return t_next, index, done, steps + 1
 
     def keep_going(carry):

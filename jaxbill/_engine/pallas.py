@@ -6,8 +6,9 @@ traffic, not the arithmetic, sets the pace. Here one Pallas (Triton) kernel
 runs the whole loop: each program holds ``block`` lanes in registers from the
 first collision of a chunk to the last, and takes exactly the moves of the
 other drivers (``jaxbill._engine.step.end_and_begin`` and ``search_step``, built from
-the scene's own functions), so a scene gets the kernel without a line of GPU
-code.
+the scene's own functions) and the same bookkeeping of each collision
+(``jaxbill._engine.chunks.Bookkeeping``), so a scene gets the kernel without a
+line of GPU code.
 
 What the Triton backend lowers shapes this module: arrays of power-of-two
 sizes only, no slicing of a value, no gather, no constants captured by the
@@ -16,8 +17,8 @@ row, padded to a power of two), a lane's state is the tuple of its rows (the
 engine's *components*), the scene's parameters come in as inputs, and every
 per-lane value is a ``(block,)`` vector.
 
-It records the final state and the run statistics (``record="final"``);
-records of states or sections go through the XLA driver. Derivatives are never
+It records the final state, the run statistics and the result codes
+(``record="final"``); records of states or sections go through the XLA driver. Derivatives are never
 taken through it: they go through ``jaxbill._engine.step.advance``.
 
 Without a GPU it runs in interpret mode (``interpret=True``) on the CPU, which
@@ -32,16 +33,14 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxbill._engine.lanes import (
+from jaxbill._engine.chunks import (
     CONTACT_CODES,
-    PALLAS_BLOCK,
+    Bookkeeping,
     Carry,
+    Plan,
     add_tally_to_bins,
-    empty_tally,
-    energy_drift,
     fresh_carry,
-    tallied_codes,
-    tally_contact,
+    settled,
 )
 from jaxbill._engine.step import (
     begin_flight,
@@ -52,8 +51,11 @@ from jaxbill._engine.step import (
     without_conditionals,
 )
 
-# Orbits per kernel program (``lanes.PALLAS_BLOCK``, where a batch is padded to it).
-BLOCK = PALLAS_BLOCK
+# Orbits per kernel program. Measured by a prototype on an H100 (float64, the
+# spinning stick): 32 lanes on one warp were fastest; 64 on 2 warps reached
+# 0.97x that, 128 on 4 0.94x, 256 on 8 0.82x. A batch is padded to whole blocks
+# (``jaxbill._engine.drivers.lane_width``).
+BLOCK = 32
 NUM_WARPS = 1
 # ``rarely``'s rare side (a corner) computed only in blocks where some lane needs it.
 RARE_BY_BLOCK = True
@@ -77,33 +79,29 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
     tangent vector, its log-stretch and its running maximum (the FLI).
     """
     leaves = [ref[0] for ref in refs[:leaf_count]]
-    inputs = 6 + (3 if dynamical else 0)
-    steps_ref, states0_ref, state_ref, time_ref, error_ref, counts_ref = refs[leaf_count : leaf_count + 6]
-    state_out, time_out, error_out, counts_out = refs[leaf_count + inputs : leaf_count + inputs + 4]
+    inputs = _CARRY_INPUTS + (3 if dynamical else 0)
+    steps_ref, states0_ref, state_ref, time_ref, error_ref, counts_ref, result_ref = refs[
+        leaf_count : leaf_count + _CARRY_INPUTS
+    ]
+    state_out, time_out, error_out, counts_out, result_out = refs[leaf_count + inputs : leaf_count + inputs + 5]
     scene = jax.tree.unflatten(treedef, leaves)
     steps = steps_ref[0]
     state0 = tuple(states0_ref[i, :] for i in range(size))
     constants = scene.orbit_constants(state0)
-    drift_of = energy_drift(scene, state0)
-    codes = tallied_codes(scene)
+    books = Bookkeeping(Plan("final"), scene, state0)
 
     def not_finished(loop):
-        return jnp.min(loop[5]) < steps
+        return jnp.min(loop[2]) < steps
 
     def one_turn(loop):
-        lane, state, time, error, counts, done, tangent = loop
+        lane, running, done, tangent = loop
         if dynamical:
             # The tangent of this flight's collision, taken before the lane moves on.
             pushed = end_flight_tangent(scene, lane, constants, tangent[0])
             pushed = tuple(p if i in dynamical else jnp.zeros_like(p) for i, p in enumerate(pushed))
-        lane, (collided, new_state, dt, contact) = end_and_begin(scene, lane, done < steps, constants)
+        lane, collided, collision = end_and_begin(scene, lane, done < steps, constants)
         lane = _broadcast(lane, block)
-        state = where(collided, new_state, state)
-        time = jnp.where(collided, time + dt, time)
-        drift = drift_of(new_state)
-        # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
-        error = jnp.where(collided, jnp.maximum(error, drift), error)
-        counts = tally_contact(codes, counts, contact, collided)
+        running = books.after(running, collision, collided)
         done = done + collided.astype(jnp.int32)
         if dynamical:
             vector, log_norm, fli = tangent
@@ -111,30 +109,35 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
             vector = where(collided, tuple(p / norm for p in pushed), vector)
             log_norm = jnp.where(collided, log_norm + jnp.log(norm), log_norm)
             tangent = (_broadcast(vector, block), log_norm, jnp.where(collided, jnp.maximum(fli, log_norm), fli))
-        return _broadcast(search_step(scene, lane), block), state, time, error, counts, done, tangent
+        return _broadcast(search_step(scene, lane), block), running, done, tangent
 
     state = tuple(state_ref[i, :] for i in range(size))
     lane = _broadcast(begin_flight(scene, state, constants), block)
-    counts = empty_tally(codes, (block,))
+    carry = Carry(state, time_ref[...], error_ref[...], None, result_ref[...])
     tangent: tuple = ()
     if dynamical:
-        vector_ref, log_norm_ref, fli_ref = refs[leaf_count + 6 : leaf_count + 9]
+        vector_ref, log_norm_ref, fli_ref = refs[leaf_count + _CARRY_INPUTS : leaf_count + inputs]
         tangent = (tuple(vector_ref[i, :] for i in range(size)), log_norm_ref[...], fli_ref[...])
-    loop = (lane, state, time_ref[...], error_ref[...], counts, jnp.zeros((block,), jnp.int32), tangent)
-    _, state, time, error, counts, done, tangent = jax.lax.while_loop(not_finished, one_turn, loop)
+    loop = (lane, books.running(carry, state, (block,)), jnp.zeros((block,), jnp.int32), tangent)
+    _, running, done, tangent = jax.lax.while_loop(not_finished, one_turn, loop)
     for i in range(size):
-        state_out[i, :] = state[i]
-    time_out[...] = time
-    error_out[...] = error
+        state_out[i, :] = running.state[i]
+    time_out[...] = running.time
+    error_out[...] = running.max_energy_error
+    result_out[...] = books.result(running)
     so_far = [counts_ref[k, :] for k in range(len(CONTACT_CODES) + 1)]
-    for k, row in enumerate(add_tally_to_bins(so_far, codes, counts, done.astype(jnp.int64))):
+    for k, row in enumerate(add_tally_to_bins(so_far, books.codes, running.tally, done.astype(jnp.int64))):
         counts_out[k, :] = row
     if dynamical:
-        vector_out, log_norm_out, fli_out = refs[leaf_count + inputs + 4 :]
+        vector_out, log_norm_out, fli_out = refs[leaf_count + inputs + 5 :]
         for i in range(size):
             vector_out[i, :] = tangent[0][i]
         log_norm_out[...] = tangent[1]
         fli_out[...] = tangent[2]
+
+
+# The kernel's inputs besides the scene's leaves and a tangent: steps, states0 and the carry's five fields.
+_CARRY_INPUTS = 7
 
 
 def _call(
@@ -166,9 +169,15 @@ def _call(
     one = pl.BlockSpec((1,), lambda i: (0,))
     state_rows = jax.ShapeDtypeStruct((rows, batch), jnp.float64)
     per_lane = jax.ShapeDtypeStruct((batch,), jnp.float64)
-    in_specs = [one] * (len(leaves) + 1) + [lane_rows, lane_rows, lane_values, lane_values, count_spec]
-    out_specs = [lane_rows, lane_values, lane_values, count_spec]
-    out_shape = [state_rows, per_lane, per_lane, jax.ShapeDtypeStruct((count_rows, batch), jnp.int64)]
+    in_specs = [one] * (len(leaves) + 1) + [lane_rows, lane_rows, lane_values, lane_values, count_spec, lane_values]
+    out_specs = [lane_rows, lane_values, lane_values, count_spec, lane_values]
+    out_shape = [
+        state_rows,
+        per_lane,
+        per_lane,
+        jax.ShapeDtypeStruct((count_rows, batch), jnp.int64),
+        jax.ShapeDtypeStruct((batch,), jnp.int32),
+    ]
     arguments = [
         *(jnp.reshape(jnp.asarray(leaf, jnp.float64), (1,)) for leaf in leaves),
         jnp.reshape(jnp.asarray(steps, jnp.int32), (1,)),
@@ -177,6 +186,7 @@ def _call(
         carry.time,
         carry.max_energy_error,
         component_major(carry.contact_counts, count_rows),
+        carry.result,
     ]
     dynamical = None
     if tangent is not None:
@@ -202,10 +212,10 @@ def _call(
     )
     with without_conditionals(rare_by_block=rare_by_block):
         out = kernel(*arguments)
-    carry = Carry(out[0][:size].T, out[1], out[2], out[3][: len(CONTACT_CODES) + 1].T)
+    carry = Carry(out[0][:size].T, out[1], out[2], out[3][: len(CONTACT_CODES) + 1].T, out[4])
     if tangent is None:
         return carry
-    return carry, (out[4][:size].T, out[5], out[6])
+    return carry, (out[5][:size].T, out[6], out[7])
 
 
 def pallas_final(
@@ -268,3 +278,15 @@ def pallas_fli(scene, states0: jax.Array, tangents0: jax.Array, n, *, block: int
         scene, states0, fresh_carry(scene, states0), n, (tangents0, zeros, zeros), block, interpret
     )
     return fli, log_norm, carry.state
+
+
+def pallas_chunk(plan: Plan, interpret: bool):
+    """The ``"pallas"`` driver's chunk of a batch (``jaxbill._engine.chunks``): final states and statistics
+    (``plan.record == "final"``), settled. ``interpret``: the kernel in Pallas's interpreter (a CPU)."""
+    if plan.record != "final":
+        raise ValueError(f"the Pallas kernel records final states only, not {plan.record!r}")
+
+    def run_kernel(scene, states0, carry, start, steps):
+        return settled(plan, scene, states0, pallas_final(scene, states0, carry, steps, interpret=interpret), ())
+
+    return run_kernel

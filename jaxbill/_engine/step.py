@@ -48,7 +48,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbill._engine.first_root import first_root, root_step, search_start, select, with_curvatures
+from jaxbill._engine.first_root import REFUSED, first_root, root_step, search_start, select, with_curvatures
+from jaxbill._engine.results import collision_status
 from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT, TWO_PI, cos_sin_polynomial, remainder_two_pi
 from jaxbill._engine.validation import is_concrete
 from jaxbill._scenes.protocols import NO_CONTACT
@@ -210,15 +211,50 @@ def where(condition, if_true: tuple, if_false: tuple) -> tuple:
     return tuple(jnp.where(condition, a, b) for a, b in zip(if_true, if_false, strict=True))
 
 
-def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok):
-    """A collision's result: unchanged for a flight that never ends, NaN for a failed search."""
+class Collision(NamedTuple):
+    """One collision of an orbit (or of a block of orbits, elementwise).
+
+    Attributes:
+        state: the state just after it, as components (a driver that keeps
+            states as arrays stacks them).
+        dt: the flight time to it (``inf``: the flight never ends; NaN: no
+            contact was proven).
+        contact: the scene's contact code (0: none).
+        status: int32, its ``jaxbill._engine.results.Result``: ``FINISHED``
+            where it went well, else what went wrong.
+    """
+
+    state: Any
+    dt: jax.Array
+    contact: jax.Array
+    status: jax.Array
+
+
+def checks_its_bounds(scene) -> bool:
+    """Static: ``scene`` checks the bounds of its root search and refuses a step that breaks them
+    (``jaxbill._engine.first_root.REFUSED``; a scene says so by ``checks_curvature = True``)."""
+    return bool(getattr(scene, "checks_curvature", False))
+
+
+def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok, refused=None) -> Collision:
+    """A collision's result: unchanged for a flight that never ends, NaN for a failed search.
+
+    ``ok``: the search ended within its step bound; ``refused``: the scene
+    refused a step of it (``None``: a scene that never does).
+    """
     reached = jnp.isfinite(t)
+    status = collision_status(t, ok, refused)
     ok = ok & ~jnp.isnan(t)  # a search that met a NaN gap proved nothing
     new_state = where(reached, moved_and_kicked, state)
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
     new_state = tuple(jnp.where(ok, a, jnp.nan) for a in new_state)
     contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
-    return new_state, jnp.where(ok, t, jnp.nan), contact
+    return Collision(new_state, jnp.where(ok, t, jnp.nan), contact, status)
+
+
+def refused_search(scene, index):
+    """Whether a search of ``scene`` that ended at gap ``index`` was refused (``None``: it never is)."""
+    return index == REFUSED if checks_its_bounds(scene) else None
 
 
 # -- one whole collision ------------------------------------------------------------
@@ -226,9 +262,11 @@ def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok):
 
 @jax.custom_jvp
 def searched_contact_time(scene, state: tuple):
-    """First contact of a turning body: ``(t, gap index, ok)`` (``t = inf``: never; ``ok``: within the step bound)."""
+    """First contact of a turning body: ``(t, gap index, ok)`` (``t = inf``: never; ``ok``: within the step bound;
+    the index ``REFUSED`` where the scene refused the search)."""
     profile, bounds = scene.root_search(state)
-    t, index, _, ok = first_root(lambda t: scene.gaps_along_flight(profile, t), bounds, MAX_ROOT_STEPS)
+    gaps = lambda t: scene.gaps_along_flight(profile, t)  # noqa: E731
+    t, index, _, ok = first_root(gaps, bounds, MAX_ROOT_STEPS, checks_its_bounds(scene))
     return t, index, ok
 
 
@@ -260,22 +298,25 @@ def advance(scene, state: jax.Array, constants: Any):
     For a state known to be valid; ``constants`` are ``scene.orbit_constants``
     of the orbit's first state (its components).
     """
-    new_parts, t, contact = advance_components(scene, components(state), constants)
-    return stacked(new_parts), t, contact
+    collision = advance_components(scene, components(state), constants)
+    return stacked(collision.state), collision.dt, collision.contact
 
 
-def advance_components(scene, parts: tuple, constants: Any):
-    """``advance`` on a state's components, in and out: a loop that carries them never packs a state
-    into an array and slices it again at every collision (one orbit of the walls 1.1x faster)."""
+def advance_components(scene, parts: tuple, constants: Any) -> Collision:
+    """``advance`` on a state's components, in and out, with the collision's status: a loop that carries
+    them never packs a state into an array and slices it again at every collision (one orbit of the walls
+    1.1x faster)."""
+    refused = None
     if scene.searches_for_roots:
         t, index, ok = searched_contact_time(scene, parts)
+        refused = refused_search(scene, index)
     else:
         # Each part computed once (see ``computed_once``): a lockstep batch of lenses 2.7x faster.
         t, index = computed_once(lambda p, c: scene.closed_form_contact(p, c), parts, constants)
         ok = jnp.array(True)
     t_reached = jnp.where(jnp.isfinite(t), t, 0.0)
     kicked, contact = computed_once(lambda *args: scene.collide_at(*args), parts, t_reached, index, constants)
-    return finish_step(parts, kicked, t, contact, ok)
+    return finish_step(parts, kicked, t, contact, ok, refused)
 
 
 # -- the lane state machine ---------------------------------------------------------
@@ -331,7 +372,7 @@ def search_step(scene, lane: Lane) -> Lane:
     if not scene.searches_for_roots:
         return lane
     gap, slope, curvature = with_curvatures(scene.gaps_along_flight(lane.profile, lane.t))
-    t, index, done = root_step(gap, slope, lane.bounds, lane.t, curvature)
+    t, index, done = root_step(gap, slope, lane.bounds, lane.t, curvature, checks_its_bounds(scene))
     searching = ~lane.found
     return lane._replace(
         t=jnp.where(searching, t, lane.t),
@@ -341,12 +382,12 @@ def search_step(scene, lane: Lane) -> Lane:
     )
 
 
-def end_flight(scene, lane: Lane, constants: Any):
-    """``(new_state, dt, contact)`` of a lane whose search is over (or hit the step bound), as ``advance``
-    (``new_state`` as components)."""
+def end_flight(scene, lane: Lane, constants: Any) -> Collision:
+    """The ``Collision`` of a lane whose search is over (or hit the step bound), as ``advance_components``."""
     t = lane.t
     kicked, contact = scene.collide_at(lane.state, jnp.where(jnp.isfinite(t), t, 0.0), lane.index, constants)
-    return finish_step(lane.state, kicked, t, contact, lane.found)
+    refused = refused_search(scene, lane.index) if scene.searches_for_roots else None
+    return finish_step(lane.state, kicked, t, contact, lane.found, refused)
 
 
 def end_flight_tangent(scene, lane: Lane, constants: Any, tangent: tuple) -> tuple:
@@ -388,10 +429,10 @@ def end_and_begin(scene, lane: Lane, active: jax.Array, constants: Any):
     """A lane whose search is over (or out of steps) applies its impulse and begins its next flight.
 
     ``active = False`` freezes the lane (its orbit has all the collisions it
-    was asked for). Returns ``(lane, (collided, new_state, dt, contact))``:
-    whether the lane completed a collision, and that collision's result.
+    was asked for). Returns ``(lane, collided, collision)``: whether the lane
+    completed a collision, and that ``Collision``.
     """
     collided = active & (lane.found | (lane.steps >= MAX_ROOT_STEPS))
-    new_state, dt, contact = end_flight(scene, lane, constants)
-    lane = tree_where(collided, begin_flight(scene, new_state, constants), lane)
-    return lane, (collided, new_state, dt, contact)
+    collision = end_flight(scene, lane, constants)
+    lane = tree_where(collided, begin_flight(scene, collision.state, constants), lane)
+    return lane, collided, collision

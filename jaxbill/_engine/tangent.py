@@ -52,14 +52,14 @@ restricting the tangent maps to them loses nothing.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, cast
+from typing import Any, NamedTuple, Protocol, cast
 
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import _collide
-from jaxbill._engine.step import advance, advance_components, components, orbit_constants, stacked
+from jaxbill._engine.step import advance_components, components, orbit_constants, stacked
 from jaxbill._engine.validation import check_state_static, check_unbatched_scene, require_x64
 from jaxbill._scenes.protocols import Scene
 
@@ -188,8 +188,27 @@ def _map_with_contact(scene: Scene, state: jax.Array, constants: Any = None):
     # end still approaching its wall, resolved by a collision with dt = 0).
     if constants is None:
         constants = orbit_constants(scene, state)
-    new_state, dt, contact = advance(scene, state, constants)
-    return (new_state, dt), contact
+    collision = advance_components(scene, components(state), constants)
+    return (stacked(collision.state), collision.dt), (collision.contact, collision.status)
+
+
+class PushedFrame(NamedTuple):
+    """One collision of a state and of a frame of tangent vectors (``pushed_frame``).
+
+    Attributes:
+        state: ``(S,)`` the state just after the collision.
+        dt: ``()`` its flight time.
+        contact: ``()`` its contact code.
+        status: ``()`` int32, its ``jaxbill._engine.results.Result``.
+        frame: the pushed frame, as it was given (state vectors ``(S, k)`` or
+            dynamical coordinates ``(k, m)``).
+    """
+
+    state: jax.Array
+    dt: jax.Array
+    contact: jax.Array
+    status: jax.Array
+    frame: jax.Array
 
 
 def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bool, constants: Any = None):
@@ -213,7 +232,13 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
         ``(S, k)``. The collision is linearised once (the root search runs
         once) and the linear map applied to the ``k`` vectors.
     """
-    (new_state, dt), linear, contact = jax.linearize(
+    pushed = _pushed_vectors(scene, state, vectors, flow, constants)
+    return pushed.state, pushed.dt, pushed.contact, pushed.frame
+
+
+def _pushed_vectors(scene: Scene, state: jax.Array, vectors: jax.Array, flow: bool, constants: Any) -> PushedFrame:
+    """``push_forward`` with the collision's status."""
+    (new_state, dt), linear, (contact, status) = jax.linearize(
         lambda s: _map_with_contact(scene, s, constants), state, has_aux=True
     )
 
@@ -224,7 +249,7 @@ def push_forward(scene: Scene, state: jax.Array, vectors: jax.Array, *, flow: bo
         return ds
 
     new_vectors = jax.vmap(push, in_axes=1, out_axes=1)(vectors)
-    return new_state, dt, contact, new_vectors
+    return PushedFrame(new_state, dt, contact, status, new_vectors)
 
 
 def push_frame(scene: Scene, state: jax.Array, coefficients: jax.Array, *, flow: bool, constants: Any = None):
@@ -239,21 +264,31 @@ def push_frame(scene: Scene, state: jax.Array, coefficients: jax.Array, *, flow:
     (a spectrum of the circle billiard 1.2x faster, the static lens 1.1x; the
     same values to the bit, since those zeros only ever added zero).
     """
+    pushed = pushed_frame(scene, state, coefficients, flow=flow, constants=constants)
+    return pushed.state, pushed.dt, pushed.contact, pushed.frame
+
+
+def pushed_frame(
+    scene: Scene, state: jax.Array, coefficients: jax.Array, *, flow: bool, constants: Any = None
+) -> PushedFrame:
+    """``push_frame`` with the collision's status (a ``PushedFrame``), for the analyses' result codes."""
     indices = getattr(scene, "dynamical_indices", None)
     if indices is None:
         vectors = to_state_space(scene, state, coefficients)
-        new_state, dt, contact, vectors = push_forward(scene, state, vectors, flow=flow, constants=constants)
-        return new_state, dt, contact, to_dynamical(scene, new_state, vectors)
+        pushed = _pushed_vectors(scene, state, vectors, flow, constants)
+        return pushed._replace(frame=to_dynamical(scene, pushed.state, pushed.frame))
     parts = components(state)
 
     def map_of_dynamical(dynamical):
         given = dict(zip(indices, dynamical, strict=True))
         start = tuple(given.get(i, part) for i, part in enumerate(parts))
         orbit = scene.orbit_constants(start) if constants is None else constants
-        new_parts, dt, contact = advance_components(scene, start, orbit)
-        return (new_parts, dt), contact
+        collision = advance_components(scene, start, orbit)
+        return (collision.state, collision.dt), (collision.contact, collision.status)
 
-    (new_parts, dt), linear, contact = jax.linearize(map_of_dynamical, tuple(parts[i] for i in indices), has_aux=True)
+    (new_parts, dt), linear, (contact, status) = jax.linearize(
+        map_of_dynamical, tuple(parts[i] for i in indices), has_aux=True
+    )
     new_state = stacked(new_parts)
     velocity = cast(_Flows, scene).phase_velocity(new_state) if flow else None
 
@@ -263,7 +298,7 @@ def push_frame(scene: Scene, state: jax.Array, coefficients: jax.Array, *, flow:
             return jnp.stack([d_parts[i] - velocity[i] * d_time for i in indices])
         return jnp.stack([d_parts[i] for i in indices])
 
-    return new_state, dt, contact, jax.vmap(push, in_axes=1, out_axes=1)(coefficients)
+    return PushedFrame(new_state, dt, contact, status, jax.vmap(push, in_axes=1, out_axes=1)(coefficients))
 
 
 def tangent_map(

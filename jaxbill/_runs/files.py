@@ -85,6 +85,8 @@ class Checkpoint:
         section_rows: section points written to the run directory so far.
         records_from: the collision count at which the run directory's records
             begin (0, unless the directory continues a checkpoint of another run).
+        result: ``()`` or ``(B_local,)`` int32: each orbit's result code so far
+            (``jb.Result``); ``None`` in a checkpoint written before runs kept them.
     """
 
     state0: Float[np.ndarray, "*batch S"]
@@ -100,6 +102,7 @@ class Checkpoint:
     record: str
     section_rows: int = 0
     records_from: int = 0
+    result: Int[np.ndarray, "*orbits"] | None = None
 
     def save(self, path: str | os.PathLike) -> None:
         """Write to ``path`` (an ``.npz``) atomically: a temporary file, then a rename."""
@@ -121,6 +124,8 @@ class Checkpoint:
         }
         if self.orbit_index is not None:
             arrays["orbit_index"] = self.orbit_index
+        if self.result is not None:
+            arrays["result"] = self.result
         for i, leaf in enumerate(self.scene_parameters):
             arrays[f"scene_parameter_{i}"] = leaf
         temporary = path.with_name(path.name + ".partial")
@@ -202,6 +207,7 @@ class Checkpoint:
                 record=str(arrays["record"]),
                 section_rows=int(arrays["section_rows"]),
                 records_from=int(arrays["records_from"]),
+                result=arrays.get("result"),
             )
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(

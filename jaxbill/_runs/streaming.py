@@ -7,47 +7,34 @@ or ``.npy`` files in a run directory) and a checkpoint can be taken. Device
 memory is therefore bounded by one chunk's records, whatever the run's length;
 host memory by what is recorded (or by nothing, with a run directory).
 
-Every chunk runs the same per-collision code as ``jb.orbit`` (``step_function``,
-time accumulated as ``t + dt``), and a chunk boundary is invisible to the
+Every chunk is a driver's chunk (``jaxbill._engine.chunks``), the code
+``jb.orbit`` runs in one chunk, and a chunk boundary is invisible to the
 arithmetic, so the records, final states and statistics of a run do not
 depend on the chunk size, and a run resumed from a checkpoint continues bit for
-bit as if it had never stopped. Batches run in lanes of ``scene.batch_chunk``
-orbits split over the devices (``jaxbill._engine.sharding``).
+bit as if it had never stopped. Batches run in lanes of the driver's width
+split over the devices (``jaxbill._engine.drivers.Batch``). This module is
+the host's side: the loop over chunks, the records, the checkpoints.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jaxtyping import ArrayLike, Float, Int
 
-from jaxbill._engine import lanes
-from jaxbill._engine.collision import _check_eagerly, _poison_if, step_function
-from jaxbill._engine.lanes import CONTACT_CODES
-from jaxbill._engine.pallas import pallas_final
-from jaxbill._engine.sharding import (
-    ORBIT_AXIS,
-    DeviceChoice,
-    held_rows,
-    host_rows,
-    orbit_mesh,
-    pad_batch,
-    padded_batch_size,
-    shard_over_orbits,
-    to_mesh,
-)
-from jaxbill._engine.step import vmapped_over_lanes
+from jaxbill._engine.chunks import CONTACT_CODES, Carry, Plan
+from jaxbill._engine.collision import _check_eagerly
+from jaxbill._engine.drivers import Batch
+from jaxbill._engine.results import Result
+from jaxbill._engine.sharding import DeviceChoice
 from jaxbill._engine.validation import check_count
 from jaxbill._runs import guard as _run_guard
 from jaxbill._runs.files import (
@@ -135,6 +122,8 @@ class Run:
             of ``contact_codes``, and (last column) with any other code.
         max_energy_error: ``()`` / ``(B_local,)``: ``max |E - E0| / |E0|`` over all
             collisions (``|E - E0|`` if ``E0 = 0``; NaN for an orbit that was NaN-poisoned).
+        result: ``()`` / ``(B_local,)`` int32: why each orbit stopped, or what went
+            wrong first (``jb.Result``; ``FINISHED`` when all went well).
         t, contact, state: ``record="states"``: ``(R,)``, ``(R,)``, ``(R, S)`` (with a
             leading ``B_local`` axis for a batch): the collisions numbered ``every``,
             ``2 every``, ... In memory, those of this call (after ``resume``); with a
@@ -155,6 +144,7 @@ class Run:
     contact_codes: tuple[int, ...]
     contact_counts: Int[np.ndarray, "*orbits codes"]
     max_energy_error: Float[np.ndarray, "*orbits"]
+    result: Int[np.ndarray, "*orbits"]
     t: Float[np.ndarray, "*orbits R"] | None
     contact: Int[np.ndarray, "*orbits R"] | None
     state: Float[np.ndarray, "*orbits R S"] | None
@@ -166,303 +156,30 @@ class Run:
     out: Path | None
 
 
-# -- the compiled chunk ------------------------------------------------------------
-
-
-class _Carry(NamedTuple):
-    """What one orbit carries from chunk to chunk (on the device)."""
-
-    # on the device while the run goes, built and saved as numpy on the host
-    state: jax.Array | np.ndarray  # (S,)
-    time: jax.Array | np.ndarray  # ()
-    max_energy_error: jax.Array | np.ndarray  # ()
-    contact_counts: jax.Array | np.ndarray  # (len(CONTACT_CODES) + 1,) int64
-
-
-@dataclasses.dataclass(frozen=True)
-class _Plan:
-    """The static shape of one compiled chunk (part of the compilation key)."""
-
-    record: str  # "final", "states" or "section"
-    every: int  # "states": record collisions whose number is a multiple of this
-    rows: int  # records per orbit per chunk on the device
-    section: Section | None = None
-
-
-class _Running(NamedTuple):
-    """What one orbit carries from collision to collision inside a chunk: the carry, with the chunk's
-    contacts in a tally (``jaxbill._engine.lanes.tally_contact``)."""
-
-    state: jax.Array | np.ndarray
-    time: jax.Array | np.ndarray
-    max_energy_error: jax.Array | np.ndarray
-    tally: tuple
-
-
-def _collider(scene, state0, codes: tuple[int, ...]):
-    """``running -> (running, contact)``: one collision and the running statistics."""
-    advance = step_function(scene, state0)
-    drift_of = lanes.energy_drift(scene, state0)
-
-    def collide(c: _Running):
-        state, dt, contact = advance(c.state)
-        drift = drift_of(state)
-        tally = lanes.tally_contact(codes, c.tally, contact)
-        # jnp.maximum propagates NaN: a poisoned orbit keeps reporting NaN.
-        return _Running(state, c.time + dt, jnp.maximum(c.max_energy_error, drift), tally), contact
-
-    return collide
-
-
-def _lane_chunk(plan: _Plan, scene, state0, carry: _Carry, start, steps):
-    """Collisions ``start + 1 .. start + steps`` of one orbit from ``carry``.
-
-    ``start`` and ``steps`` are traced (one compilation serves every chunk,
-    the last, shorter one included); ``plan`` is static. Returns the new carry
-    and the chunk's records (see ``_Plan``).
-    """
-    codes = lanes.tallied_codes(scene)
-    collide = _collider(scene, state0, codes)
-    invalid = ~scene.is_valid(state0)  # later states come from the map itself
-
-    def skip(c: _Running, count) -> _Running:
-        return jax.lax.fori_loop(0, count, lambda _, c: collide(c)[0], c)
-
-    def finished(c: _Running) -> _Carry:
-        counts = lanes.add_tally(carry.contact_counts, codes, c.tally, steps)
-        return _Carry(c.state, c.time, c.max_energy_error, counts)
-
-    running = _Running(carry.state, carry.time, carry.max_energy_error, lanes.empty_tally(codes))
-    if plan.record == "final":
-        return finished(skip(running, steps)), ()
-
-    if plan.record == "states":
-        every, rows = plan.every, plan.rows
-        # The collisions recorded are numbered every, 2 every, ... from the start
-        # of the whole run, so a chunk may begin anywhere between two of them:
-        # skip to just before the next one, then record one and skip every - 1.
-        head = jnp.minimum(steps, every - 1 - start % every)
-        running = skip(running, head)
-        rest = steps - head
-        groups = (rest + every - 1) // every
-        buffers = (
-            jnp.zeros(rows, jnp.float64),
-            jnp.zeros(rows, jnp.int32),
-            jnp.zeros((rows, state0.shape[-1]), jnp.float64),
-        )
-
-        def record_group(g, c_and_buffers):
-            c, (t, contact, state) = c_and_buffers
-            c, k = collide(c)
-            buffers = (t.at[g].set(c.time), contact.at[g].set(k), state.at[g].set(c.state))
-            if every > 1:
-                c = skip(c, jnp.minimum(every - 1, rest - g * every - 1))
-            return c, buffers
-
-        running, buffers = jax.lax.fori_loop(0, groups, record_group, (running, buffers))
-        return finished(running), _poison_if(invalid, *buffers)
-
-    section, rows = plan.section, plan.rows
-    assert section is not None  # a "section" plan carries its Section
-    project = section.project or (lambda scene, state: state)
-    shape = jax.eval_shape(project, scene, state0)
-    # One row past the end takes what does not fit; the count goes on, so the
-    # host sees the overflow and runs the chunk again with more room.
-    buffers = (
-        jnp.zeros((rows + 1, *shape.shape), shape.dtype),
-        jnp.zeros(rows + 1, jnp.float64),
-        jnp.zeros(rows + 1, jnp.int64),
-    )
-
-    def record_if_kept(i, c_buffers_fill):
-        c, (point, t, number), fill = c_buffers_fill
-        c, contact = collide(c)
-        keep = jnp.asarray(section.where(scene, c.state, contact), dtype=bool)
-        row = jnp.where(keep & (fill < rows), fill, rows)
-        buffers = (point.at[row].set(project(scene, c.state)), t.at[row].set(c.time), number.at[row].set(start + i + 1))
-        return c, buffers, fill + keep.astype(jnp.int64)
-
-    running, (point, t, number), fill = jax.lax.fori_loop(
-        0, steps, record_if_kept, (running, buffers, jnp.zeros((), jnp.int64))
-    )
-    point, t = _poison_if(invalid, point[:rows], t[:rows])
-    return finished(running), (point, t, number[:rows], fill)
-
-
-def _lanes_chunk(plan: _Plan, width: int):
-    """``_lane_chunk`` for a batch whose size is a multiple of ``width``: lanes of
-    ``width`` orbits, vectorised, run one after another (as ``_orbit_batch``)."""
-    lane = vmapped_over_lanes(functools.partial(_lane_chunk, plan), in_axes=(None, 0, 0, None, None))
-
-    def run_lanes(scene, states0, carry, start, steps):
-        def as_lanes(a):
-            return a.reshape(-1, width, *a.shape[1:])
-
-        out = jax.lax.map(
-            lambda lane_args: lane(scene, lane_args[0], lane_args[1], start, steps),
-            (as_lanes(states0), jax.tree.map(as_lanes, carry)),
-        )
-        return jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), out)
-
-    return run_lanes
-
-
-def _serial_chunk(plan: _Plan):
-    """``_lane_chunk`` for a batch, one orbit after another (the ``"serial"`` driver)."""
-    one = functools.partial(_lane_chunk, plan)
-
-    def run_serial(scene, states0, carry, start, steps):
-        return jax.lax.map(lambda orbit: one(scene, orbit[0], orbit[1], start, steps), (states0, carry))
-
-    return run_serial
-
-
-def _state_machine_chunk(plan: _Plan, width: int, driver: str, interpret: bool):
-    """The chunk of a batch run by the lane state machine: in an XLA loop (``jaxbill._engine.lanes``) or,
-    for ``record="final"``, in a Pallas kernel (``jaxbill._engine.pallas``). ``interpret``: on a CPU
-    (the kernel in Pallas's interpreter; the XLA loop in blocks of ``width`` lanes)."""
-    section = plan.section
-    machine_plan = lanes.Plan(
-        plan.record,
-        plan.every,
-        plan.rows,
-        where=None if section is None else section.where,
-        project=None if section is None else section.project,
-    )
-
-    def run_machine(scene, states0, carry, start, steps):
-        records: Any = ()
-        if driver == "pallas":
-            new_carry = pallas_final(scene, states0, lanes.Carry(*carry), steps, interpret=interpret)
-        else:
-            blocks = lanes.run_blocks(machine_plan, width if interpret else None)
-            new_carry, records = blocks(scene, states0, lanes.Carry(*carry), start, steps)
-        invalid = ~jax.vmap(scene.is_valid)(states0)
-        if plan.record == "states":
-            records = tuple(_poison_rows(invalid, r) for r in records)
-        elif plan.record == "section":
-            point, t, number, fill = records
-            records = (
-                _poison_rows(invalid, point[:, : plan.rows]),
-                _poison_rows(invalid, t[:, : plan.rows]),
-                number[:, : plan.rows],
-                fill,
-            )
-        return _Carry(*new_carry), records
-
-    return run_machine
-
-
-def _poison_rows(invalid, array):
-    """Rows of orbits whose first state was invalid, NaN (0 for integers)."""
-    mask = invalid.reshape(-1, *([1] * (array.ndim - 1)))
-    return jnp.where(mask, jnp.nan if jnp.issubdtype(array.dtype, jnp.floating) else 0, array)
-
-
-@functools.lru_cache(maxsize=64)
-def _compiled_chunk(plan: _Plan, width: int | None, mesh: Mesh | None, driver: str | None):
-    if width is None:
-        return jax.jit(functools.partial(_lane_chunk, plan))
-    assert mesh is not None  # a batch runs on a mesh
-    if driver == "serial":
-        batched = _serial_chunk(plan)
-    elif driver == "lockstep":
-        batched = _lanes_chunk(plan, width)
-    else:
-        assert driver is not None  # chosen by the engine for a batch
-        batched = _state_machine_chunk(plan, width, driver, interpret=mesh.devices.flat[0].platform == "cpu")
-    return shard_over_orbits(batched, mesh, (False, True, True, False, False))
-
-
 # -- one orbit or a batch, on the devices ------------------------------------------
 
 
-class _Engine:
-    """Runs chunks of one orbit or of a batch and brings the results to the host."""
+class _Engine(Batch):
+    """The run's orbits on the devices (``jaxbill._engine.drivers.Batch``), started from a checkpoint."""
 
-    def __init__(self, scene, state0: np.ndarray, devices, driver: str | None = None):
-        self.scene, self.state0 = scene, state0
-        self.batched = state0.ndim == 2
-        if not self.batched:
-            self.width = self.mesh = None
-            self.orbit_index = None
-            self.lanes = 1
-            return
-        self.mesh = mesh = orbit_mesh(devices)
-        self.platform = mesh.devices.flat[0].platform
-        # an unknown driver fails here, before anything runs
-        self.width = lanes.lane_width(scene, lanes.choose_driver(scene, self.platform, driver))
-        self.driver = driver
-        self.batch = state0.shape[0]
-        self.lanes = padded_batch_size(self.batch, self.width, self.mesh)
-        self.padded_state0 = pad_batch(state0, self.lanes)
-        self.device_scene = jax.tree.map(lambda leaf: to_mesh(leaf, mesh, batched=False), scene)
-        self.device_state0 = to_mesh(self.padded_state0, mesh, batched=True)
-        index = held_rows(self.device_state0)
-        self.local_rows = index < self.batch  # padding lanes are computed, never reported
-        self.orbit_index = index[self.local_rows]
-        self.padding_last = not np.any(self.local_rows[self.orbit_index.size :])
-
-    def initial_carry(self, checkpoint: Checkpoint | None) -> _Carry:
+    def initial_carry(self, checkpoint: Checkpoint | None) -> Carry:
         """The carry on the devices: fresh, or this process's orbits from ``checkpoint``."""
-        if not self.batched:
-            start = self.fresh_carry(self.state0) if checkpoint is None else _carry_of(checkpoint)
-            return _Carry(*(jnp.asarray(a) for a in start))
-        assert self.mesh is not None and self.orbit_index is not None  # set up for a batch
-        mesh = self.mesh
-        if checkpoint is None:
-            # The start is already on the devices, and zeros are made there:
-            # sending 0.5 MB of them from the host cost 0.2 ms of every call.
-            return _Carry(self.device_state0, *_zero_statistics(self.lanes, mesh)())
-        # Every process builds the full padded batch but fills in only its
-        # own orbits: to_mesh reads only the rows of this process's devices.
-        fields = []
-        for fresh_field, saved in zip(self.fresh_carry(self.padded_state0), _carry_of(checkpoint)):
-            field = np.array(fresh_field)
-            field[self.orbit_index] = saved
-            fields.append(field)
-        return _Carry(*(to_mesh(field, mesh, batched=True) for field in fields))
-
-    @staticmethod
-    def fresh_carry(state0: np.ndarray) -> _Carry:
-        lead = state0.shape[:-1]
-        return _Carry(
-            state=state0,
-            time=np.zeros(lead),
-            max_energy_error=np.zeros(lead),
-            contact_counts=np.zeros((*lead, len(CONTACT_CODES) + 1), np.int64),
-        )
-
-    def run_chunk(self, plan: _Plan, carry: _Carry, start: int, steps: int):
-        driver = lanes.choose_driver(self.scene, self.platform, self.driver, plan.record) if self.batched else None
-        function = _compiled_chunk(plan, self.width, self.mesh, driver)
-        if self.batched:
-            return function(self.device_scene, self.device_state0, carry, start, steps)
-        return function(self.scene, jnp.asarray(self.state0), carry, start, steps)
-
-    def to_host(self, array: jax.Array | np.ndarray) -> np.ndarray:
-        """This process's orbits of a per-orbit device array, padding lanes dropped."""
-        if not self.batched:
-            return np.asarray(array)
-        assert isinstance(array, jax.Array)  # a batch's results live on the mesh
-        values = host_rows(array)[0]
-        assert self.orbit_index is not None  # set up for a batch
-        # The padding lanes come last: a slice (a view, no copy) drops them.
-        return values[: self.orbit_index.size] if self.padding_last else values[self.local_rows]
+        return self.fresh_carry() if checkpoint is None else self.carry_of(_carry_of(checkpoint))
 
 
-@functools.lru_cache(maxsize=16)
-def _zero_statistics(lanes: int, mesh: Mesh):
-    """A compiled function of no argument: ``fresh_carry``'s zero statistics of ``lanes`` orbits, split
-    over ``mesh``."""
-    return jax.jit(
-        lambda: tuple(jnp.zeros(np.shape(a), a.dtype) for a in _Engine.fresh_carry(np.zeros((lanes, 1)))[1:]),
-        out_shardings=NamedSharding(mesh, PartitionSpec(ORBIT_AXIS)),
+def _carry_of(checkpoint: Checkpoint) -> Carry:
+    result = checkpoint.result
+    if result is None:
+        # A checkpoint written before runs kept result codes: what its times say.
+        finite, forever = np.isfinite(checkpoint.time), np.isinf(checkpoint.time)
+        result = np.where(finite, Result.FINISHED, np.where(forever, Result.NO_WALL, Result.NON_FINITE))
+    return Carry(
+        checkpoint.state,
+        checkpoint.time,
+        checkpoint.max_energy_error,
+        checkpoint.contact_counts,
+        np.asarray(result, np.int32),
     )
-
-
-def _carry_of(checkpoint: Checkpoint) -> _Carry:
-    return _Carry(checkpoint.state, checkpoint.time, checkpoint.max_energy_error, checkpoint.contact_counts)
 
 
 def _largest_everywhere(value: int) -> int:
@@ -827,14 +544,16 @@ def run(
             ``None`` picks the fastest for the scene on the platform: on a
             CPU ``"serial"`` or ``"lockstep"`` by the scene's
             ``batch_chunk``, on a GPU ``"pallas"`` (``record="final"``; other
-            records take ``"lanes"``). See ``jaxbill._engine.lanes.choose_driver``. All give
+            records take ``"lanes"``). See ``jaxbill._engine.drivers.choose_driver``. All give
             the same orbits to rounding; a checkpoint resumes bitwise with the
             driver that wrote it. Derivatives never go through a driver:
             ``jb.collide``, ``jb.orbit`` of one orbit, ``jb.tangent_map`` and
             ``jb.lyapunov_spectrum`` differentiate ``jaxbill._engine.step.advance``.
 
     Returns:
-        ``Run``: final states, running statistics, records and a checkpoint.
+        ``Run``: final states, running statistics, each orbit's result code
+        (``jb.Result``), records and a checkpoint. A batch of no orbits
+        ``(0, S)`` gives a run of no orbits.
 
     Raises:
         ValueError: for bad ``state0``/``n`` (as ``jb.orbit``), an unknown
@@ -896,7 +615,13 @@ def _run_chunks(
     if kind == "section":
         fitting = max(1, RECORD_BYTES_PER_CHUNK // (sized_lanes * row_bytes))
         rows = min(chunk, section.capacity or min(fitting, max(1, chunk // 8)))
-    plan = _Plan(kind, every, rows, section)
+    plan = Plan(
+        kind,
+        every,
+        rows,
+        where=None if section is None else section.where,
+        project=None if section is None else section.project,
+    )
 
     carry = engine.initial_carry(checkpoint)
     own_checkpoint = checkpoint if continues else None
@@ -913,13 +638,14 @@ def _run_chunks(
     last_saved = time.perf_counter()
 
     def checkpoint_now() -> Checkpoint:
-        state, time_, max_energy_error, contact_counts = (engine.to_host(a) for a in carry)
+        state, time_, max_energy_error, contact_counts, result = (engine.to_host(a) for a in carry)
         return Checkpoint(
             state0=state0,
             state=state,
             time=time_,
             max_energy_error=max_energy_error,
             contact_counts=contact_counts,
+            result=result,
             contact_codes=np.asarray(CONTACT_CODES),
             collisions=done,
             orbit_index=engine.orbit_index,
@@ -1017,6 +743,7 @@ def _run_chunks(
         except OSError as error:
             raise write_failed(error, False) from error
     t, contact, states, points = records.results(point)
+    assert final.result is not None  # a checkpoint this run wrote keeps its result codes
     return Run(
         final_state=final.state,
         time=final.time,
@@ -1024,6 +751,7 @@ def _run_chunks(
         contact_codes=CONTACT_CODES,
         contact_counts=final.contact_counts,
         max_energy_error=final.max_energy_error,
+        result=final.result,
         t=t,
         contact=contact,
         state=states,

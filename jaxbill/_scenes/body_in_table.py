@@ -278,7 +278,7 @@ class BodyInTable(eqx.Module):
         speed = jnp.sqrt(motion.vx * motion.vx + motion.vy * motion.vy)
         time_scale = 1.0 / (speed / self.table.size + jnp.abs(motion.omega))
         sharp = self._sharp
-        profile = (state, lower, upper) if self._checked else state
+        profile = (state, lower, upper) if self.checks_curvature else state
         return profile, RootBounds(
             functools.reduce(jnp.maximum, lower),
             functools.reduce(jnp.maximum, upper),
@@ -289,8 +289,9 @@ class BodyInTable(eqx.Module):
         )
 
     @property
-    def _checked(self) -> bool:
-        """Static: some wall's bounds were estimated, so each root step checks the gaps' curvature against them."""
+    def checks_curvature(self) -> bool:
+        """Static: some wall's bounds were estimated, so each root step checks the gaps' curvature against them
+        (a step that breaks them is refused: the orbit's result is ``BOUND_VIOLATED``)."""
         return any(piece.checks_curvature for piece in self.table.pieces)
 
     def gaps_along_flight(self, profile, t: jax.Array):
@@ -303,7 +304,7 @@ class BodyInTable(eqx.Module):
         stops and the orbit is poisoned rather than continued past a root it
         may have stepped over.
         """
-        if not self._checked:
+        if not self.checks_curvature:
             return self._gaps_along_flight(profile, t, self._sharp)
         state, lower, upper = profile
         gaps, slopes, curvatures = self._gaps_along_flight(state, t, True)

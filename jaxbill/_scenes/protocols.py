@@ -55,8 +55,12 @@ class Scene(Protocol):
     Optional, outside the protocol: ``contact_codes``, every contact code the
     scene's collisions can have (``NO_CONTACT`` included). ``jb.run`` counts
     those one by one and any other code in its last bin
-    (``jaxbill._engine.lanes.tallied_codes``); without it, all of ``-4..4``,
-    which costs the closed forms' batches up to a fifth of their speed.
+    (``jaxbill._engine.chunks.tallied_codes``); without it, all of ``-4..4``,
+    which costs the closed forms' batches up to a fifth of their speed. And
+    ``checks_curvature`` (static, default ``False``): the scene checks the
+    bounds of its root search along the way and refuses a step that breaks
+    them by a NaN gap with a finite slope, which an orbit's result then
+    reports as ``BOUND_VIOLATED`` (``jaxbill._engine.first_root.REFUSED``).
     """
 
     state_size: ClassVar[int]  # length of the state vector
@@ -70,7 +74,7 @@ class Scene(Protocol):
 
         A vmapped root search waits for its slowest lane, a narrow lane leaves
         the vector units idle: the best width is measured per scene
-        (``benchmarks/bench_drivers.py``; ``jaxbill._engine.lanes.choose_driver``).
+        (``benchmarks/bench_drivers.py``; ``jaxbill._engine.drivers.choose_driver``).
         """
         ...
 
