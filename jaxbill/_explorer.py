@@ -91,7 +91,12 @@ UNIT_PARAMETERS = ("mass",)
 
 
 def scene_parameters(scene) -> dict[str, float]:
-    """The scene's parameters as floats, by name: its non-static dataclass fields (all must be scalars)."""
+    """The scene's parameters as floats, by name: the scene's own ``parameters`` where it has them (a body in a
+    table: those of its constructor, or of its table and body), else its non-static dataclass fields (all must
+    be scalars)."""
+    own = getattr(scene, "parameters", None)
+    if own is not None:
+        return dict(own)
     values = {}
     for field in dataclasses.fields(scene):
         if field.metadata.get("static", False):
@@ -116,7 +121,8 @@ def rebuild(scene, **changes):
             f"{sorted(unknown)[0]}: not a parameter of {type(scene).__name__} (its parameters: {', '.join(parameters)})"
         )
     parameters.update({name: float(value) for name, value in changes.items()})
-    new = type(scene)(**parameters)
+    replaced = getattr(scene, "with_parameters", None)
+    new = replaced(**parameters) if replaced is not None else type(scene)(**parameters)
     if getattr(new, "kind", None) != getattr(scene, "kind", None):
         raise ValueError(f"{', '.join(changes)}: these values make a {new.kind!r} scene, not {scene.kind!r}")
     return new

@@ -24,7 +24,9 @@ The impulse is the one mass-metric reflection (``jaxbill._scenes.impulse``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import inspect
 from typing import Any, ClassVar
 
 import equinox as eqx
@@ -65,6 +67,24 @@ _BATCH_CHUNK = {"rotor": 1, "static": 256, "point": 256}
 
 def _contact_name(contact: str, wall: str) -> str:
     return f"{contact} on {wall}"
+
+
+def _scalar_fields(module) -> list:
+    """``(name, value)`` of a body's or table's fields that are numbers (not static, no tuple of corners)."""
+    out = []
+    for field in dataclasses.fields(module):
+        value = getattr(module, field.name)
+        if field.metadata.get("static", False) or not isinstance(value, (jax.Array, np.ndarray, float, int)):
+            continue
+        out.append((field.name, value))
+    return out
+
+
+def _scalar(name: str, value) -> float:
+    array = np.asarray(value)
+    if array.ndim != 0:
+        raise ValueError(f"{name}: one scene has scalar parameters, not a batch (shape {array.shape})")
+    return float(array)
 
 
 class BodyInTable(eqx.Module):
@@ -139,6 +159,62 @@ class BodyInTable(eqx.Module):
                 f"body: its smallest width {float(np.max(self.body.width)):.6g} is not below the width of "
                 f"{self.table.name}, {float(np.min(self.table.width)):.6g}: it fits nowhere"
             )
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """The scene's parameters by name, as floats (one scene, not a batch: ValueError otherwise).
+
+        A scene with a constructor of its own (``jb.StickInCircle(R, ell, mass,
+        inertia)``, ...) gives that constructor's parameters. A body in a table
+        gives the table's scalar parameters (``cap_radius``, ...), then the
+        body's (a point's none: its mass and spin do not change its orbits),
+        a body's named ``body_<name>`` where the table has the name already.
+        ``with_parameters`` takes them back.
+        """
+        names = self._constructor_names
+        if names is not None:
+            return {name: _scalar(name, getattr(self, name)) for name in names}
+        return {name: _scalar(name, getattr(getattr(self, part), field)) for name, (part, field) in self._paths.items()}
+
+    def with_parameters(self, **values) -> BodyInTable:
+        """The same scene with the parameters ``values`` (names as ``parameters`` gives them) changed.
+
+        Raises:
+            ValueError: for an unknown name, or values the table's, the body's
+                or the constructor's checks refuse (the body must still fit).
+        """
+        current = self.parameters
+        unknown = set(values) - set(current)
+        if unknown:
+            known = ", ".join(current)
+            raise ValueError(f"{sorted(unknown)[0]}: not a parameter of this scene (its parameters: {known})")
+        if self._constructor_names is not None:
+            return type(self)(**{**current, **values})
+        scene = self
+        for name, value in values.items():
+            part, field = self._paths[name]
+            scene = eqx.tree_at(
+                lambda s, p=part, f=field: getattr(getattr(s, p), f), scene, jnp.asarray(value, dtype=jnp.float64)
+            )
+        scene.check()
+        return scene
+
+    @property
+    def _paths(self) -> dict[str, tuple[str, str]]:
+        """Static: each public parameter's ``(part, field)``: ``("table", "cap_radius")``, ``("body", "l1")``."""
+        paths = {name: ("table", name) for name, _ in _scalar_fields(self.table)}
+        if self.body.kind != "point":
+            for name, _ in _scalar_fields(self.body):
+                paths["body_" + name if name in paths else name] = ("body", name)
+        return paths
+
+    @property
+    def _constructor_names(self) -> tuple[str, ...] | None:
+        """Static: the parameter names of a subclass's own constructor (``None`` for ``BodyInTable(body, table)``)."""
+        init = type(self).__init__
+        if init is BodyInTable.__init__:
+            return None
+        return tuple(name for name in inspect.signature(init).parameters if name != "self")
 
     def check(self) -> None:
         """Raise ValueError if the (possibly replaced) parameters are invalid or the body cannot fit."""

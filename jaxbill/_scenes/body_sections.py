@@ -256,7 +256,9 @@ def draw_orbit(ax, scene, state0, orb, color, *, body_every: int = 1):
     path = np.concatenate([np.asarray(state0)[None, :2], states[:, :2]])
     span = (float(np.nanmin(path[:, 0])), float(np.nanmax(path[:, 0])))
     wall = table_outline(scene, (span[0] - 1.0, span[1] + 1.0))
-    ax.plot(wall[:, 0], wall[:, 1], color="k", lw=1.2)
+    box = (*span, float(np.nanmin(path[:, 1])), float(np.nanmax(path[:, 1])))
+    for ox, oy in scene.table.cells_covering(*box):  # a periodic table: the cells the path unfolds across
+        ax.plot(wall[:, 0] + ox, wall[:, 1] + oy, color="k", lw=1.2)
     ax.plot(path[:, 0], path[:, 1], color=color, lw=0.8, alpha=0.9)
     if scene.body.kind != "point":
         for state in states[::body_every]:

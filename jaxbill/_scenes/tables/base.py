@@ -308,6 +308,11 @@ class Table(eqx.Module):
         """
         return None
 
+    def cells_covering(self, x_low: float, x_high: float, y_low: float, y_high: float) -> list:
+        """The origins ``(ox, oy)`` (floats) of the copies of the table a picture of the box shows: ``[(0, 0)]``;
+        a periodic table, every cell that meets the box (its orbits unfold across the plane)."""
+        return [(0.0, 0.0)]
+
     def check(self) -> None:
         """ValueError naming a parameter that is out of range (concrete values)."""
 

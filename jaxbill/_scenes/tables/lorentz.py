@@ -99,8 +99,8 @@ class LorentzGas(Table):
     the square one never has.
     """
 
+    spacing: jax.Array  # first: the unit of length (the explorer keeps it fixed)
     radius: jax.Array
-    spacing: jax.Array
     lattice: str = eqx.field(static=True)
 
     name: ClassVar[str] = "the Lorentz gas"
@@ -195,6 +195,22 @@ class LorentzGas(Table):
             j = oy / (_HEIGHT * d)
             i = ox / d - 0.5 * j
         return jnp.stack([jnp.round(i), jnp.round(j)], axis=-1).astype(jnp.int64)
+
+    def cells_covering(self, x_low: float, x_high: float, y_low: float, y_high: float) -> list:
+        """The centres of the cells that meet the box (floats; a picture draws the disc of each)."""
+        d = float(self.spacing)
+        a1 = np.array([d, 0.0])
+        a2 = np.array([0.0, d]) if self.lattice == "square" else np.array([0.5 * d, _HEIGHT * d])
+        corners = np.array([[x_low, y_low], [x_low, y_high], [x_high, y_low], [x_high, y_high]])
+        lattice = np.linalg.solve(np.stack([a1, a2], axis=1), corners.T)
+        low, high = np.floor(lattice.min(axis=1)) - 1, np.ceil(lattice.max(axis=1)) + 1
+        centres = []
+        for i in np.arange(low[0], high[0] + 1):
+            for j in np.arange(low[1], high[1] + 1):
+                x, y = i * a1 + j * a2
+                if x_low - d <= x <= x_high + d and y_low - d <= y <= y_high + d:
+                    centres.append((float(x), float(y)))
+        return centres
 
     # -- geometry --------------------------------------------------------------------------------
 

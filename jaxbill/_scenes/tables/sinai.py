@@ -39,8 +39,8 @@ class Sinai(Table):
     clockwise). Only ``jb.PointBody`` moves in it.
     """
 
+    side: jax.Array  # first: the unit of length (the explorer keeps it fixed)
     radius: jax.Array
-    side: jax.Array
 
     name: ClassVar[str] = "Sinai's billiard"
 
