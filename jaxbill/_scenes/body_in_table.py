@@ -510,6 +510,28 @@ class BodyInTable(eqx.Module):
             return kick, speed_of, contact_speeds
 
         every = tuple(range(len(gaps)))
+        if self.body.kind == "point" and self.table.corners is not None:
+            # A point in a table whose walls meet two at a time: each corner's two impulses, wall by wall.
+            kick, _, contact_speeds = kicker(every)
+
+            def kick_wall(s, i):
+                kicked = impulse.reflect(s, levers[i], normals[i], mass_ratio)
+                return s if crossings[i] else kicked
+
+            def speed_of_wall(s, i):
+                return impulse.approach_speed(s, levers[i], normals[i])
+
+            return impulse.pairs_resolution(
+                state,
+                index,
+                self.table.corners,
+                contact_speeds(state),
+                kick_wall,
+                speed_of_wall,
+                kick,
+                self.gap_scale,
+                self.gap_codes,
+            )
         corners = self._cornering
         if corners == every:
             kick, speed_of, contact_speeds = kicker(every)

@@ -298,6 +298,13 @@ class Table(eqx.Module):
         gaps: list[Any] = [piece.gap(x, y) for piece in self.pieces]
         return functools.reduce(jnp.minimum, gaps)
 
+    @property
+    def corners(self) -> tuple[tuple[int, int], ...] | None:
+        """Static: the corners of the table, as pairs ``(i, j)`` of the walls that meet there, where every corner
+        is two walls meeting at a point; ``None`` (the default) where the scene should not rely on it. A point
+        particle's corner rule then runs over these pairs alone (``jaxbill._scenes.impulse.pairs_resolution``)."""
+        return None
+
     def cell_origin(self, x, y, vx, vy):
         """The origin ``(ox, oy)`` of the cell a flight from ``(x, y)`` at ``(vx, vy)`` runs in, or ``None``.
 

@@ -97,6 +97,12 @@ class Mushroom(Table):
         )
 
     @property
+    def corners(self):
+        """Each wall meets the next, round the table: four convex corners and the two re-entrant ones where the
+        stem meets the rim."""
+        return tuple((i, (i + 1) % 6) for i in range(6))
+
+    @property
     def piece_names(self):
         return (
             "the cap's arc",

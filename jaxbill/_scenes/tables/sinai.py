@@ -67,6 +67,11 @@ class Sinai(Table):
         return (*sides, DiscObstacle((zero, zero), self.radius))
 
     @property
+    def corners(self):
+        """The square's four corners (the disc meets no side)."""
+        return ((0, 1), (1, 2), (2, 3), (3, 0))
+
+    @property
     def piece_names(self):
         return ("the bottom side", "the right side", "the top side", "the left side", "the disc")
 
