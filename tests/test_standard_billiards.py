@@ -15,6 +15,8 @@ import math
 import os
 import sys
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -400,3 +402,66 @@ def test_a_point_into_a_right_angled_corner_comes_straight_back(table, state):
     assert contact == 2
     corner = np.asarray(state[:2]) + dt * np.asarray(state[3:5])
     np.testing.assert_allclose(new[:2], corner, rtol=0, atol=1e-14)
+
+
+# -- drivers, bad input ------------------------------------------------------------------------------
+
+
+def test_the_lane_driver_takes_the_same_collisions_and_the_kernel_lowers_for_cuda():
+    """The lane state machine (``driver="lanes"``) takes the hexagonal Lorentz gas's collisions and crossings
+    as the serial driver does (the same contacts, states to rounding); the Pallas kernels of the gas and the
+    mushroom (no gathers, no constants: the cell's fold and the finite walls are elementwise) lower for CUDA."""
+    from jaxbill._engine import lanes as _lanes
+    from jaxbill._engine import pallas as _pallas
+
+    gas = scene_of(hexagonal_gas())
+    starts = boundary_starts([ref.disc_obstacle((0, 0), HEX_RADIUS)], 8, seed=9)
+    serial, lanes = jb.orbit(gas, starts, 64, driver="serial"), jb.orbit(gas, starts, 64, driver="lanes")
+    np.testing.assert_array_equal(np.asarray(lanes.contact), np.asarray(serial.contact))
+    np.testing.assert_allclose(np.asarray(lanes.state), np.asarray(serial.state), rtol=1e-12, atol=1e-12)
+    for scene in (gas, scene_of(mushroom())):
+        zeros = jnp.zeros((64, 6))
+        final = jax.jit(lambda s, c, scene=scene: _pallas.pallas_final(scene, s, c, 10)).trace(
+            zeros, _lanes.fresh_carry(scene, zeros)
+        )
+        assert "triton" in final.lower(lowering_platforms=("cuda",)).as_text().lower()
+
+
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (lambda: jb.Sinai(0.5), "radius"),
+        (lambda: jb.Sinai(0.2, side=-1.0), "side"),
+        (lambda: jb.LorentzGas(0.6, 1.0), "radius"),
+        (lambda: jb.LorentzGas(0.3, float("nan")), "spacing"),
+        (lambda: jb.LorentzGas(0.3, 1.0, "triangular"), "lattice"),
+        (lambda: jb.Mushroom(1.0, 2.0, 1.0), "stem_width"),
+        (lambda: jb.Mushroom(1.0, 0.5, 0.0), "stem_height"),
+        (lambda: jb.Mushroom(float("inf"), 0.5, 1.0), "cap_radius"),
+        (lambda: jb.DiscObstacle((0.0, 0.0), -1.0).check(), "radius"),
+        (lambda: jb.WithObstacles(jb.Circle(1.0), [jb.DiscObstacle((0.8, 0.0), 0.3)]), "obstacle 1 reaches"),
+        (
+            lambda: jb.WithObstacles(
+                jb.Circle(1.0), [jb.DiscObstacle((0.2, 0.0), 0.2), jb.EllipseObstacle((-0.1, 0), 0.2, 0.1)]
+            ),
+            "overlap",
+        ),
+        (lambda: jb.BodyInTable(jb.Dumbbell(0.1), jb.Sinai(0.2)), "only jb.PointBody"),
+        (lambda: jb.BodyInTable(jb.PolygonBody.regular(3, 0.1), mushroom()), "re-entrant corner"),
+        (lambda: jb.orbit(scene_of(mushroom()), np.array([0.9, -0.5, 0.0, 1.0, 0.0, 0.0]), 3), "outside the mushroom"),
+        (lambda: jb.orbit(scene_of(jb.Sinai(0.25)), np.array([0.1, 0.0, 0.0, 1.0, 0.0, 0.0]), 3), "outside"),
+    ],
+)
+def test_bad_input_is_a_value_error_naming_it(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_bad_parameters_under_jit_poison_the_orbit_with_nan():
+    """Traced parameters skip the eager checks; the scene's validity poisons the result with NaN instead."""
+
+    def first_state(radius):
+        return jb.collide(scene_of(jb.Sinai(radius)), jnp.array([0.4, 0.0, 0.0, 0.6, 0.8, 0.0]))[0]
+
+    assert np.all(np.isfinite(np.asarray(jax.jit(first_state)(0.25))))
+    assert np.all(np.isnan(np.asarray(jax.jit(first_state)(0.7))))
