@@ -50,7 +50,8 @@ API_PAGES = {
     ),
     "api/bodies.md": (
         "Bodies and tables",
-        "A scene composed of any rigid body in any convex table, `jb.BodyInTable(body, table)`: the scene, "
+        "A scene composed of any rigid body in any convex table, or a point in the field's standard tables that "
+        "are not convex, `jb.BodyInTable(body, table)`: the scene, "
         "the bodies and the tables ([concepts](../concepts.md#compositions-a-body-in-a-table): the state "
         "layout, the gap numbering, the contact codes). What a body or a table answers the scene, and the "
         "walls tables are made of, are on the page for [extending](extending.md).",
@@ -66,6 +67,12 @@ API_PAGES = {
             "Polygon",
             "Strip",
             "ConvexTable",
+            "Sinai",
+            "LorentzGas",
+            "Mushroom",
+            "WithObstacles",
+            "DiscObstacle",
+            "EllipseObstacle",
         ],
     ),
     "api/extending.md": (
@@ -73,7 +80,20 @@ API_PAGES = {
         "The bases a new body or table subclasses, and the smooth walls (pieces) tables are made of, with "
         "every member the scene asks of them. Step by step, with the tests each needs: "
         "[a new table](../how-to/new-table.md), [a new body](../how-to/new-body.md).",
-        ["Body", "Table", "Piece", "Motion", "DiscWall", "EllipseWall", "HalfPlane", "CapsuleWall", "FunctionWall"],
+        [
+            "Body",
+            "Table",
+            "Piece",
+            "Motion",
+            "DiscWall",
+            "EllipseWall",
+            "HalfPlane",
+            "CapsuleWall",
+            "FunctionWall",
+            "Segment",
+            "Arc",
+            "PeriodicWall",
+        ],
     ),
     "api/orbits.md": (
         "Orbits and invariants",
@@ -247,6 +267,7 @@ ENGINE_MEMBERS = (
     "contacts",
     "resolve",
     "contact_offsets_at",
+    "clearances",
 )
 # What a body or a table answers its scene rather than its user: kept off the page of
 # bodies and tables, documented with the bases (Body, Table) on the page for extending.
@@ -274,6 +295,9 @@ PART_MEMBERS = (
     "boundary_offset",
     "boundary_coordinate",
     "boundary_point",
+    "clearance",
+    "cell_origin",
+    "cells_covering",
 )
 # The pages a user reads for the scenes themselves: the members above stay off them.
 USER_SCENE_PAGES = ("api/scenes.md", "api/bodies.md")

@@ -81,8 +81,13 @@ from jaxbill._scenes.tables.base import Motion, Piece, Table  # noqa: E402
 from jaxbill._scenes.tables.circle import Circle, DiscWall  # noqa: E402
 from jaxbill._scenes.tables.convex_function import ConvexTable, FunctionWall  # noqa: E402
 from jaxbill._scenes.tables.ellipse import Ellipse, EllipseWall  # noqa: E402
+from jaxbill._scenes.tables.finite import Arc, Segment  # noqa: E402
 from jaxbill._scenes.tables.flat import HalfPlane, Strip  # noqa: E402
+from jaxbill._scenes.tables.lorentz import LorentzGas, PeriodicWall  # noqa: E402
+from jaxbill._scenes.tables.mushroom import Mushroom  # noqa: E402
+from jaxbill._scenes.tables.obstacles import DiscObstacle, EllipseObstacle, WithObstacles  # noqa: E402
 from jaxbill._scenes.tables.polygon import Polygon  # noqa: E402
+from jaxbill._scenes.tables.sinai import Sinai  # noqa: E402
 from jaxbill._scenes.tables.stadium import CapsuleWall, Stadium  # noqa: E402
 from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D  # noqa: E402
 from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D  # noqa: E402
@@ -112,6 +117,15 @@ __all__ = [
     "Polygon",
     "Strip",
     "ConvexTable",
+    "Sinai",
+    "LorentzGas",
+    "Mushroom",
+    "WithObstacles",
+    "DiscObstacle",
+    "EllipseObstacle",
+    "Segment",
+    "Arc",
+    "PeriodicWall",
     "Body",
     "Table",
     "Piece",

@@ -35,7 +35,7 @@ synthetic mouse and slider events, and ``jaxbill explore --save`` uses it.
 
 from __future__ import annotations
 
-import inspect
+import dataclasses
 import math
 import pathlib
 import time
@@ -91,28 +91,20 @@ UNIT_PARAMETERS = ("mass",)
 
 
 def scene_parameters(scene) -> dict[str, float]:
-    """The scene's numeric parameters as floats, by the names its constructor takes (all must be scalars).
-
-    A constructor argument that is not a number (a static ``kind``, a body or a
-    table object) is left out; a scene with no numeric parameter by name
-    (``jb.BodyInTable(body, table)``) cannot be explored.
-    """
+    """The scene's parameters as floats, by name: the scene's own ``parameters`` where it has them (a body in a
+    table: those of its constructor, or of its table and body), else its non-static dataclass fields (all must
+    be scalars)."""
+    own = getattr(scene, "parameters", None)
+    if own is not None:
+        return dict(own)
     values = {}
-    for name in inspect.signature(type(scene)).parameters:
-        value = getattr(scene, name, None)
-        if value is None or isinstance(value, str):
+    for field in dataclasses.fields(scene):
+        if field.metadata.get("static", False):
             continue
-        array = np.asarray(value)
-        if not np.issubdtype(array.dtype, np.number):
-            continue
-        if array.ndim != 0:
-            raise ValueError(f"scene: explore needs one scene, not a batch ({name} has shape {array.shape})")
-        values[name] = float(array)
-    if not values:
-        raise TypeError(
-            f"scene: explore needs a scene whose constructor takes its parameters as numbers "
-            f"(StickInCircle, StickInEllipse, StickBetweenWalls2D, StickBetweenWalls3D), not {type(scene).__name__}"
-        )
+        value = np.asarray(getattr(scene, field.name))
+        if value.ndim != 0:
+            raise ValueError(f"scene: explore needs one scene, not a batch ({field.name} has shape {value.shape})")
+        values[field.name] = float(value)
     return values
 
 
@@ -129,7 +121,8 @@ def rebuild(scene, **changes):
             f"{sorted(unknown)[0]}: not a parameter of {type(scene).__name__} (its parameters: {', '.join(parameters)})"
         )
     parameters.update({name: float(value) for name, value in changes.items()})
-    new = type(scene)(**parameters)
+    replaced = getattr(scene, "with_parameters", None)
+    new = replaced(**parameters) if replaced is not None else type(scene)(**parameters)
     if getattr(new, "kind", None) != getattr(scene, "kind", None):
         raise ValueError(f"{', '.join(changes)}: these values make a {new.kind!r} scene, not {scene.kind!r}")
     return new
@@ -342,7 +335,7 @@ class Explorer:
             pieces.append(points[0])
             line.set_data(*np.concatenate(pieces).T)
             if done == 0:
-                self._draw_configuration(state0, jax.tree_util.tree_map(lambda a: a[0], orb), color)
+                self._draw_configuration(state0, Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]), color)
             done += len(points[0])
             if time.perf_counter() - drawn > REDRAW_SECONDS:
                 self._say(f"orbit {len(self.orbits) + 1} from ({x:.4g}, {y:.4g}): {done} collisions so far")
@@ -500,14 +493,14 @@ class Explorer:
         if self.orbits:
             last = self.orbits[-1]
             orb, _ = next(self._orbit_chunks(last.state0[None], self.chunk))
-            head = jax.tree_util.tree_map(lambda a: a[0], orb)
+            head = Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0])
             self._draw_configuration(last.state0, head, self._orbit_lines[-1][0].get_color())
 
     def _show_survey_orbit(self) -> None:
         """The configuration panel before any click: the first survey orbit."""
         states, _ = self.chart.seeds(self.scene, 1, self.invariants)
         orb, _ = next(self._orbit_chunks(states, self.chunk))
-        self._draw_configuration(states[0], jax.tree_util.tree_map(lambda a: a[0], orb), "0.45")
+        self._draw_configuration(states[0], Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0]), "0.45")
         self.configuration_axes.set_title(
             f"a survey orbit: its first {self.configuration_collisions} collisions", fontsize=10
         )
@@ -540,7 +533,7 @@ class Explorer:
         ax = self.configuration_axes
         ax.clear()
         count = self.configuration_collisions
-        head = Orbit(t=orb.t[:count], contact=orb.contact[:count], state=orb.state[:count], result=orb.result)
+        head = Orbit(t=orb.t[:count], contact=orb.contact[:count], state=orb.state[:count])
         self.chart.draw_configuration(ax, self.scene, np.asarray(state0), head, color)
         ax.set_aspect("equal")
         ax.set_title(f"the last orbit clicked: its first {len(head.t)} collisions", fontsize=10)

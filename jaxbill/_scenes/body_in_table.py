@@ -24,8 +24,10 @@ The impulse is the one mass-metric reflection (``jaxbill._scenes.impulse``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
-from typing import ClassVar
+import inspect
+from typing import Any, ClassVar
 
 import equinox as eqx
 import jax
@@ -64,6 +66,24 @@ CLOSED_FORM_LANES = 256
 
 def _contact_name(contact: str, wall: str) -> str:
     return f"{contact} on {wall}"
+
+
+def _scalar_fields(module) -> list:
+    """``(name, value)`` of a body's or table's fields that are numbers (not static, no tuple of corners)."""
+    out = []
+    for field in dataclasses.fields(module):
+        value = getattr(module, field.name)
+        if field.metadata.get("static", False) or not isinstance(value, (jax.Array, np.ndarray, float, int)):
+            continue
+        out.append((field.name, value))
+    return out
+
+
+def _scalar(name: str, value) -> float:
+    array = np.asarray(value)
+    if array.ndim != 0:
+        raise ValueError(f"{name}: one scene has scalar parameters, not a batch (shape {array.shape})")
+    return float(array)
 
 
 class BodyInTable(eqx.Module):
@@ -108,6 +128,13 @@ class BodyInTable(eqx.Module):
             raise TypeError(f"body must be a jaxbill body (jb.PointBody, jb.Dumbbell, ...); got {type(body).__name__}")
         if not isinstance(table, Table):
             raise TypeError(f"table must be a jaxbill table (jb.Circle, jb.Stadium, ...); got {type(table).__name__}")
+        if body.kind != "point" and not table.convex:
+            raise ValueError(
+                f"body: a {type(body).__name__} cannot move in {table.name} ({type(table).__name__}): the table is "
+                "not convex (a dispersing wall or a re-entrant corner), and a side of the body could touch it "
+                "between the body's contact points, which no contact of the scene watches; only jb.PointBody "
+                "moves there"
+            )
         for piece, name in zip(table.pieces, table.piece_names):
             if not body.supports(piece):
                 raise ValueError(
@@ -134,6 +161,62 @@ class BodyInTable(eqx.Module):
                 f"body: its smallest width {float(np.max(self.body.width)):.6g} is not below the width of "
                 f"{self.table.name}, {float(np.min(self.table.width)):.6g}: it fits nowhere"
             )
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """The scene's parameters by name, as floats (one scene, not a batch: ValueError otherwise).
+
+        A scene with a constructor of its own (``jb.StickInCircle(R, ell, mass,
+        inertia)``, ...) gives that constructor's parameters. A body in a table
+        gives the table's scalar parameters (``cap_radius``, ...), then the
+        body's (a point's none: its mass and spin do not change its orbits),
+        a body's named ``body_<name>`` where the table has the name already.
+        ``with_parameters`` takes them back.
+        """
+        names = self._constructor_names
+        if names is not None:
+            return {name: _scalar(name, getattr(self, name)) for name in names}
+        return {name: _scalar(name, getattr(getattr(self, part), field)) for name, (part, field) in self._paths.items()}
+
+    def with_parameters(self, **values) -> BodyInTable:
+        """The same scene with the parameters ``values`` (names as ``parameters`` gives them) changed.
+
+        Raises:
+            ValueError: for an unknown name, or values the table's, the body's
+                or the constructor's checks refuse (the body must still fit).
+        """
+        current = self.parameters
+        unknown = set(values) - set(current)
+        if unknown:
+            known = ", ".join(current)
+            raise ValueError(f"{sorted(unknown)[0]}: not a parameter of this scene (its parameters: {known})")
+        if self._constructor_names is not None:
+            return type(self)(**{**current, **values})
+        scene = self
+        for name, value in values.items():
+            part, field = self._paths[name]
+            scene = eqx.tree_at(
+                lambda s, p=part, f=field: getattr(getattr(s, p), f), scene, jnp.asarray(value, dtype=jnp.float64)
+            )
+        scene.check()
+        return scene
+
+    @property
+    def _paths(self) -> dict[str, tuple[str, str]]:
+        """Static: each public parameter's ``(part, field)``: ``("table", "cap_radius")``, ``("body", "l1")``."""
+        paths = {name: ("table", name) for name, _ in _scalar_fields(self.table)}
+        if self.body.kind != "point":
+            for name, _ in _scalar_fields(self.body):
+                paths["body_" + name if name in paths else name] = ("body", name)
+        return paths
+
+    @property
+    def _constructor_names(self) -> tuple[str, ...] | None:
+        """Static: the parameter names of a subclass's own constructor (``None`` for ``BodyInTable(body, table)``)."""
+        init = type(self).__init__
+        if init is BodyInTable.__init__:
+            return None
+        return tuple(name for name in inspect.signature(init).parameters if name != "self")
 
     def check(self) -> None:
         """Raise ValueError if the (possibly replaced) parameters are invalid or the body cannot fit."""
@@ -173,7 +256,7 @@ class BodyInTable(eqx.Module):
     @property
     def contact_codes(self) -> tuple[int, ...]:
         """Every contact code a collision can have: none, several at once, and one per gap."""
-        several = (SEVERAL_CONTACTS,) if len(self.gap_codes) > 1 else ()
+        several = (SEVERAL_CONTACTS,) if len(self._cornering) > 1 else ()
         return (NO_CONTACT, *several, *self.gap_codes)
 
     @property
@@ -207,12 +290,25 @@ class BodyInTable(eqx.Module):
             raise ValueError(
                 f"omega must be 0 for {self.never_turning} (inertia = inf): an infinitely heavy body cannot spin"
             )
+        if not self.table.intersection_of_pieces and np.all(np.isfinite(state)):
+            # A union's gaps do not say whether a point is inside it; its clearance does.
+            outside = np.asarray(self.clearances(jnp.asarray(state))) < -WALL_TOLERANCE * float(self.gap_scale)
+            for k, name in enumerate(self.body.contact_names):
+                if np.any(outside[..., k]):
+                    row = np.argmax(np.reshape(outside[..., k], (-1,)))
+                    raise ValueError(
+                        f"state puts {name} outside {self.table.name}; first offending state: "
+                        f"{np.reshape(state, (-1, 6))[row].tolist()}"
+                    )
 
     def is_valid(self, state: jax.Array) -> jax.Array:
         ok = self.body.parameters_are_valid() & self.table.parameters_are_valid()
         ok &= jnp.all(jnp.isfinite(state)) & self.motion_is_representable(state)
         gaps = self.gaps(state)
-        ok &= jnp.all(gaps >= -WALL_TOLERANCE * self.gap_scale)
+        if self.table.intersection_of_pieces:
+            ok &= jnp.all(gaps >= -WALL_TOLERANCE * self.gap_scale)
+        else:
+            ok &= jnp.all(self.clearances(state) >= -WALL_TOLERANCE * self.gap_scale)
         # A contact on the wall that does not move inwards is refused eagerly; a
         # tangential one would stall the map (zero-length flights), so poison.
         ok &= ~on_wall_not_inwards(gaps, self.approach_speeds(state))
@@ -330,9 +426,21 @@ class BodyInTable(eqx.Module):
                     column.append(value)
         return tuple(tuple(column) for column in columns[: 3 if sharp else 2])
 
+    def _origin(self, state: tuple):
+        """The origin of the cell the flight from ``state`` runs in (``None`` but in a periodic table)."""
+        x, y, _, vx, vy, _ = state
+        return self.table.cell_origin(x, y, vx, vy)
+
+    def _in_cell(self, state: tuple, origin) -> tuple:
+        """``state`` with its position relative to the cell's ``origin`` (unchanged for ``None``)."""
+        if origin is None:
+            return state
+        x, y, *rest = state
+        return (x - origin[0], y - origin[1], *rest)
+
     def closed_form_contact(self, state: tuple, constants):
         """``(t, index)`` for a body whose contacts move on straight lines."""
-        x, y, alpha, vx, vy, _ = state
+        x, y, alpha, vx, vy, _ = self._in_cell(state, self._origin(state))
         offsets = self._offsets(alpha, constants)
         times = tuple(t for piece in self.table.pieces for t in self.body.exit_times(piece, x, y, vx, vy, offsets))
         return functools.reduce(jnp.minimum, times), first_smallest(times)
@@ -349,10 +457,11 @@ class BodyInTable(eqx.Module):
             alpha = wrapped_angle(alpha + omega * t)
         return x + vx * t, y + vy * t, alpha, vx, vy, omega
 
-    def contacts(self, state: tuple, offsets) -> tuple:
+    def contacts(self, state: tuple, offsets, origin=None) -> tuple:
         """Per gap, at a contact: ``(gap, closing, lever, normal)``: its gap, a number with the sign of its
-        approach speed, its lever ``N . r_alpha`` and its wall's outward normal ``N`` (components)."""
-        x, y, _, vx, vy, omega = state
+        approach speed, its lever ``N . r_alpha`` and its wall's outward normal ``N`` (components); in a
+        periodic table, in the cell about ``origin``."""
+        x, y, _, vx, vy, omega = self._in_cell(state, origin)
         gaps, closings, levers, normals = [], [], [], []
         for piece in self.table.pieces:
             for px, py, rx, ry in self.body.contact_points(piece, x, y, offsets):
@@ -367,28 +476,111 @@ class BodyInTable(eqx.Module):
 
     def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants):
         """The flight to ``t`` and the impulse(s) of gap ``index``: ``(state, contact)``."""
+        # The cell is the flight's, from its start: at the end, on a periodic wall, the moved state would
+        # already belong to the next cell.
+        origin = self._origin(state)
         moved = self.flight_components(state, t)
         offsets = self._offsets(moved[2], constants)
-        return self.resolve(moved, index, offsets)
+        return self.resolve(moved, index, offsets, origin)
 
-    def resolve(self, state: tuple, index, offsets):
-        """The impulse(s) at a contact in gap ``index`` of ``state`` (components) on the wall: ``(state, contact)``."""
+    def resolve(self, state: tuple, index, offsets, origin=None):
+        """The impulse(s) at a contact in gap ``index`` of ``state`` (components) on the wall: ``(state, contact)``.
+
+        A periodic wall (``Piece.periodic``) gives no impulse: the flight goes on
+        into the next cell, and the state is unchanged. The corner rule
+        (several contacts at once) runs over the walls that can meet another at
+        a corner (``_cornering``); a contact with any other wall is one impulse.
+        """
         # A lambda, not a bound method: a conditional hashes its function, a scene is not hashable.
-        gaps, closings, levers, normals = computed_once(lambda s, o: self.contacts(s, o), state, offsets)
+        gaps, closings, levers, normals = computed_once(lambda s, o, c: self.contacts(s, o, c), state, offsets, origin)
         mass_ratio = self.body.mass_ratio
-        normal_x, normal_y = tuple(n[0] for n in normals), tuple(n[1] for n in normals)
+        count = self.body.contact_count
+        crossings = tuple(type(piece).periodic for piece in self.table.pieces for _ in range(count))
 
-        def kick(s, k):
-            return impulse.reflect(s, select(levers, k), (select(normal_x, k), select(normal_y, k)), mass_ratio)
+        def kicker(gap_indices: tuple):
+            """``kick(s, j)``, ``speed_of(s, j)`` and the contact speeds over the gaps ``gap_indices`` (``j`` traced,
+            a position in that tuple)."""
+            lever = tuple(levers[g] for g in gap_indices)
+            normal_x, normal_y = tuple(normals[g][0] for g in gap_indices), tuple(normals[g][1] for g in gap_indices)
+            passing = [j for j, g in enumerate(gap_indices) if crossings[g]]
 
-        def speed_of(s, k):
-            return impulse.approach_speed(s, select(levers, k), (select(normal_x, k), select(normal_y, k)))
+            def kick(s, j):
+                kicked = impulse.reflect(s, select(lever, j), (select(normal_x, j), select(normal_y, j)), mass_ratio)
+                if not passing:
+                    return kicked
+                crossing = functools.reduce(jnp.logical_or, [j == p for p in passing])
+                return tuple(jnp.where(crossing, a, b) for a, b in zip(s, kicked))
 
-        def contact_speeds(s):
-            speeds = tuple(impulse.approach_speed(s, lever, normal) for lever, normal in zip(levers, normals))
-            return gaps, closings, speeds
+            def speed_of(s, j):
+                return impulse.approach_speed(s, select(lever, j), (select(normal_x, j), select(normal_y, j)))
 
-        return impulse.contact_resolution(contact_speeds, kick, speed_of, state, index, self.gap_scale, self.gap_codes)
+            def contact_speeds(s):
+                speeds = tuple(impulse.approach_speed(s, levers[g], normals[g]) for g in gap_indices)
+                return tuple(gaps[g] for g in gap_indices), tuple(closings[g] for g in gap_indices), speeds
+
+            return kick, speed_of, contact_speeds
+
+        every = tuple(range(len(gaps)))
+        if self.body.kind == "point" and self.table.corners is not None:
+            # A point in a table whose walls meet two at a time: each corner's two impulses, wall by wall.
+            kick, _, contact_speeds = kicker(every)
+
+            def kick_wall(s, i):
+                kicked = impulse.reflect(s, levers[i], normals[i], mass_ratio)
+                return s if crossings[i] else kicked
+
+            def speed_of_wall(s, i):
+                return impulse.approach_speed(s, levers[i], normals[i])
+
+            return impulse.pairs_resolution(
+                state,
+                index,
+                self.table.corners,
+                contact_speeds(state),
+                kick_wall,
+                speed_of_wall,
+                kick,
+                self.gap_scale,
+                self.gap_codes,
+            )
+        corners = self._cornering
+        if corners == every:
+            kick, speed_of, contact_speeds = kicker(every)
+            return impulse.contact_resolution(
+                contact_speeds, kick, speed_of, state, index, self.gap_scale, self.gap_codes
+            )
+        kick, _, _ = kicker(every)
+        single = kick(state, index), select(tuple(jnp.int32(c) for c in self.gap_codes), index)
+        if len(corners) < 2:
+            return single
+        # The corner rule over the walls that meet at corners, in their own numbering.
+        in_corner = functools.reduce(jnp.logical_or, [index == g for g in corners])
+        local = functools.reduce(
+            jnp.add, [jnp.where(index == g, jnp.int32(j), jnp.int32(0)) for j, g in enumerate(corners)]
+        )
+        kick, speed_of, contact_speeds = kicker(corners)
+        codes = tuple(self.gap_codes[g] for g in corners)
+        cornered = impulse.contact_resolution(contact_speeds, kick, speed_of, state, local, self.gap_scale, codes)
+        return tuple(jnp.where(in_corner, a, b) for a, b in zip(cornered[0], single[0])), jnp.where(
+            in_corner, cornered[1], single[1]
+        )
+
+    @property
+    def _cornering(self) -> tuple[int, ...]:
+        """Static: the gaps whose walls can meet another wall at a corner.
+
+        An obstacle (``Piece.dispersing``) lies strictly inside its table, and a
+        periodic wall's crossing has no impulse to order: a contact with either
+        is never part of several at once, and leaving them out keeps the corner
+        rule's code (quadratic in the walls it covers) small.
+        """
+        count = self.body.contact_count
+        return tuple(
+            i * count + k
+            for i, piece in enumerate(self.table.pieces)
+            if not (type(piece).dispersing or type(piece).periodic)
+            for k in range(count)
+        )
 
     # -- states as arrays (the analyses, validation) --------------------------------------
 
@@ -399,12 +591,28 @@ class BodyInTable(eqx.Module):
     def _contact_table(self, state: jax.Array):
         parts = components(jnp.asarray(state))
         offsets = self._offsets(parts[2])
-        return parts, self.contacts(parts, offsets)
+        return parts, self.contacts(parts, offsets, self._origin(parts))
 
     def gaps(self, state: jax.Array) -> jax.Array:
-        """Every contact gap ``(..., G)``, wall by wall; ``>= 0`` inside."""
+        """Every contact gap ``(..., G)``, wall by wall; ``>= 0`` inside (in a periodic table, in the cell the
+        state's flight runs in)."""
         _, (gaps, *_) = self._contact_table(state)
         return jnp.stack(gaps, axis=-1)
+
+    def clearances(self, state: jax.Array) -> jax.Array:
+        """How far inside the table each contact is ``(..., K)`` (the gap unit, ``>= 0`` inside): its smallest gap
+        for a table that is an intersection of walls, ``Table.clearance`` of its point for a union; for a
+        periodic table, inside its central cell (the position unfolded)."""
+        parts = components(jnp.asarray(state))
+        offsets = self._offsets(parts[2])
+        count = self.body.contact_count
+        if self.table.intersection_of_pieces:
+            gaps = self.contacts(parts, offsets)[0]
+            per_contact: list[Any] = [functools.reduce(jnp.minimum, gaps[k::count]) for k in range(count)]
+            return jnp.stack(per_contact, axis=-1)
+        points = self.body.contact_points(self.table.pieces[0], parts[0], parts[1], offsets)
+        values: list[Any] = [self.table.clearance(px, py) for px, py, _, _ in points]
+        return jnp.stack(values, axis=-1)
 
     def approach_speeds(self, state: jax.Array) -> jax.Array:
         """The normal speed of each contact towards its wall ``(..., G)``; ``> 0`` approaching."""
@@ -412,8 +620,9 @@ class BodyInTable(eqx.Module):
         return jnp.stack([impulse.approach_speed(parts, s, n) for s, n in zip(levers, normals)], axis=-1)
 
     def contact_points(self, state: jax.Array) -> jax.Array:
-        """The contact points ``(..., G, 2)``: for each gap, the point of the body that would touch that wall."""
-        parts = components(jnp.asarray(state))
+        """The contact points ``(..., G, 2)``: for each gap, the point of the body that would touch that wall (in a
+        periodic table, relative to the centre of the cell the state's flight runs in)."""
+        parts = self._in_cell(components(jnp.asarray(state)), self._origin(components(jnp.asarray(state))))
         offsets = self._offsets(parts[2])
         points = [
             jnp.stack([px, py], axis=-1)
@@ -433,8 +642,11 @@ class BodyInTable(eqx.Module):
         ]
 
     def end_points(self, state: jax.Array) -> jax.Array:
-        """The body's contact points ``(..., K, 2)`` on the first wall (a point body: its centre)."""
-        return self.contact_points(state)[..., : self.body.contact_count, :]
+        """The body's contact points ``(..., K, 2)`` on the first wall (a point body: its centre), unfolded."""
+        parts = components(jnp.asarray(state))
+        offsets = self._offsets(parts[2])
+        points = self.body.contact_points(self.table.pieces[0], parts[0], parts[1], offsets)
+        return jnp.stack([jnp.stack([px, py], axis=-1) for px, py, _, _ in points], axis=-2)
 
     # -- invariants -----------------------------------------------------------------------
 

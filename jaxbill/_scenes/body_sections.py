@@ -11,7 +11,10 @@ Two sections, by the table (``Table.section_names``):
   ``[-1, 1]``. For a point particle these are Birkhoff's coordinates, in which
   the collision map preserves area (``ds dp``): the area-preserving section of
   the billiard. For a body they are a projection of a higher-dimensional
-  section (areas in it mean nothing).
+  section (areas in it mean nothing). The boundary is the table's walls in
+  order, obstacles included (their arc length runs clockwise, the table on the
+  left); the sides of a periodic cell are no part of it, and a crossing of one
+  has no section point (NaN).
 * ``"floor"`` (the strip between two flat walls, a turning body): at each
   collision with the floor, ``[alpha mod (2 pi / n), p]``, ``n`` the body's
   turn symmetry (``Body.turn_symmetry``: 2 for a symmetric stick or the coin),
@@ -32,6 +35,8 @@ them.
 """
 
 from __future__ import annotations
+
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -93,7 +98,13 @@ def birkhoff_section(scene, states, contacts=None) -> jax.Array:
     s = jnp.mod(_by_piece(table, piece, arcs), table.boundary_length)
     tx, ty = _by_piece(table, piece, tangents_x), _by_piece(table, piece, tangents_y)
     p = jnp.sqrt(scene.mass) * (states[..., 3] * tx + states[..., 4] * ty) / jnp.sqrt(2.0 * scene.energy(states))
-    return jnp.stack([s, p], axis=-1)
+    point = jnp.stack([s, p], axis=-1)
+    crossings = [i for i, wall in enumerate(table.pieces) if type(wall).periodic]
+    if not crossings:
+        return point
+    # A crossing of a periodic cell's side is no collision with the boundary: no section point.
+    crossed = functools.reduce(jnp.logical_or, [piece == i for i in crossings])
+    return jnp.where(crossed[..., None], jnp.nan, point)
 
 
 def _leaving_and_inside(scene, state, touching: int) -> jax.Array:
@@ -245,7 +256,9 @@ def draw_orbit(ax, scene, state0, orb, color, *, body_every: int = 1):
     path = np.concatenate([np.asarray(state0)[None, :2], states[:, :2]])
     span = (float(np.nanmin(path[:, 0])), float(np.nanmax(path[:, 0])))
     wall = table_outline(scene, (span[0] - 1.0, span[1] + 1.0))
-    ax.plot(wall[:, 0], wall[:, 1], color="k", lw=1.2)
+    box = (*span, float(np.nanmin(path[:, 1])), float(np.nanmax(path[:, 1])))
+    for ox, oy in scene.table.cells_covering(*box):  # a periodic table: the cells the path unfolds across
+        ax.plot(wall[:, 0] + ox, wall[:, 1] + oy, color="k", lw=1.2)
     ax.plot(path[:, 0], path[:, 1], color=color, lw=0.8, alpha=0.9)
     if scene.body.kind != "point":
         for state in states[::body_every]:

@@ -69,7 +69,9 @@ def table_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=N
 
     Configurations uniform in the table's box (``scene.table.extent``; along an
     unbounded direction, ``+-`` its size) times ``[-pi, pi)``, kept where every
-    gap exceeds ``margin * gap_scale``; velocities uniform on the sphere
+    contact point's clearance (``Table.clearance``: every gap, for a table that
+    is an intersection of walls; a periodic table's central cell) exceeds
+    ``margin * gap_scale``; velocities uniform on the sphere
     ``|(sqrt(M) v, sqrt(I) omega)|^2 = 2E`` (on the circle ``sqrt(M)|v| = sqrt(2E)``,
     ``omega = 0``, for a body that never turns or a point). With
     ``angular_momentum`` (a turning body in a table that conserves it), on the
@@ -93,7 +95,7 @@ def table_shell_candidates(scene, rng, m: int, energy: float, angular_momentum=N
     c = middle + rng.uniform(-1.0, 1.0, (m, 2)) * half
     alpha = rng.uniform(-np.pi, np.pi, m)
     trial = np.column_stack([c, alpha, np.zeros((m, 3))])
-    inside = np.all(np.asarray(scene.gaps(trial)) > margin * float(scene.gap_scale), axis=1)
+    inside = np.all(np.asarray(scene.clearances(trial)) > margin * float(scene.gap_scale), axis=1)
     c, alpha = c[inside], alpha[inside]
     inertia = float(scene.inertia) if turning else 0.0
     velocities, keep, w = _velocities_on_shell(rng, c, float(scene.mass), inertia, turning, energy, angular_momentum)

@@ -28,7 +28,8 @@ a point at a small distance ``delta`` outside a wall has a gap of about
 from __future__ import annotations
 
 import abc
-from typing import ClassVar, NamedTuple
+import functools
+from typing import Any, ClassVar, NamedTuple
 
 import equinox as eqx
 import jax
@@ -80,6 +81,12 @@ class Piece(eqx.Module):
     # The search compares the gap's own curvature with the bounds at every step (bounds that were
     # estimated, not derived): an orbit where they fail is poisoned with NaN.
     checks_curvature: ClassVar[bool] = False
+    # A dispersing wall (the outside of an obstacle, convex towards the table): the table is not convex,
+    # and a body's sides could touch the wall between its contact points, which the scene does not model.
+    dispersing: ClassVar[bool] = False
+    # A periodic wall of a cell: crossing it continues the flight into the neighbouring cell (no impulse,
+    # the identity on the state and its tangent), and it is no part of the boundary a section runs along.
+    periodic: ClassVar[bool] = False
 
     @abc.abstractmethod
     def gap(self, x, y):
@@ -240,6 +247,9 @@ class Table(eqx.Module):
     conserves_angular_momentum: ClassVar[bool] = False
     # A table with a centre (a bounded one) takes angular momentum about its origin; the strip has none.
     has_centre: ClassVar[bool] = True
+    # The table is the intersection of its pieces: a point is inside when every gap is >= 0. A union of
+    # convex parts (the mushroom) sets False and gives ``clearance``; its pieces are finite walls.
+    intersection_of_pieces: ClassVar[bool] = True
 
     @property
     @abc.abstractmethod
@@ -267,6 +277,50 @@ class Table(eqx.Module):
     def extent(self) -> tuple:
         """``(x_low, x_high, y_low, y_high)``: a box that holds the table (for sampling and plots; infinite
         along an unbounded direction)."""
+
+    @property
+    def convex(self) -> bool:
+        """Static: the table is convex, an intersection of walls none of which disperses.
+
+        Only a point particle moves in a table that is not (``jb.BodyInTable``
+        refuses other bodies): a body touches a convex table only at its
+        contact points, but a dispersing wall or a re-entrant corner could
+        meet one of its sides between them.
+        """
+        return self.intersection_of_pieces and not any(type(piece).dispersing for piece in self.pieces)
+
+    def clearance(self, x, y):
+        """How far inside the table a point is, in the gap unit: ``>= 0`` inside, ``< 0`` outside.
+
+        The default is the smallest of the pieces' gaps (an intersection). A
+        union of convex parts gives the largest over its parts of each part's
+        smallest gap. A periodic table answers for its central cell (the one
+        about the origin), unfolded: the sampler draws starts there.
+        """
+        gaps: list[Any] = [piece.gap(x, y) for piece in self.pieces]
+        return functools.reduce(jnp.minimum, gaps)
+
+    @property
+    def corners(self) -> tuple[tuple[int, int], ...] | None:
+        """Static: the corners of the table, as pairs ``(i, j)`` of the walls that meet there, where every corner
+        is two walls meeting at a point; ``None`` (the default) where the scene should not rely on it. A point
+        particle's corner rule then runs over these pairs alone (``jaxbill._scenes.impulse.pairs_resolution``)."""
+        return None
+
+    def cell_origin(self, x, y, vx, vy):
+        """The origin ``(ox, oy)`` of the cell a flight from ``(x, y)`` at ``(vx, vy)`` runs in, or ``None``.
+
+        ``None`` (static) for every table but a periodic one: its state keeps
+        the unfolded position, and the pieces see ``P - origin``, the position
+        in the cell the flight starts in (on a boundary between cells, the one
+        the velocity points into).
+        """
+        return None
+
+    def cells_covering(self, x_low: float, x_high: float, y_low: float, y_high: float) -> list:
+        """The origins ``(ox, oy)`` (floats) of the copies of the table a picture of the box shows: ``[(0, 0)]``;
+        a periodic table, every cell that meets the box (its orbits unfold across the plane)."""
+        return [(0.0, 0.0)]
 
     def check(self) -> None:
         """ValueError naming a parameter that is out of range (concrete values)."""
@@ -310,6 +364,8 @@ class Table(eqx.Module):
         x = y = jnp.zeros_like(s)
         index = jnp.zeros(jnp.shape(s), jnp.int32)
         for i, piece in enumerate(self.pieces):
+            if type(piece).periodic:
+                continue  # no part of the boundary: a cell's side, crossed and never hit
             start = self.boundary_offset(i)
             here = s >= start
             px, py = piece.point_at(jnp.where(here, s - start, 0.0))
