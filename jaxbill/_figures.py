@@ -307,7 +307,7 @@ def _with_twins(scene, states0, n):
     states0 = np.asarray(states0)
     both = run_orbit(scene, np.concatenate([states0, twin_states(states0)]), n)
     count = len(states0)
-    orb = type(both)(t=both.t[:count], contact=both.contact[:count], state=both.state[:count])
+    orb = jax.tree.map(lambda leaf: leaf[:count], both)
     return orb, divergence(scene, both.state[:count], both.state[count:], states0)
 
 

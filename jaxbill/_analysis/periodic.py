@@ -92,7 +92,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import equinox as eqx
 import jax
@@ -424,7 +424,9 @@ def _periodic_orbit(
 
 def _angular_momentum_or_nan(scene: Scene, state: jax.Array) -> jax.Array:
     """The scene's angular momentum of ``state``, NaN for a scene without one (the 2D walls)."""
-    return scene.angular_momentum(state) if has_angular_momentum(scene) else jnp.full((), jnp.nan)
+    if not has_angular_momentum(scene):
+        return jnp.full((), jnp.nan)
+    return cast(HasAngularMomentum, scene).angular_momentum(state)
 
 
 def _walls_periodic_orbit(

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, cast, runtime_checkable
 
 import jax
 import numpy as np
@@ -412,7 +412,7 @@ def angular_momentum(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float
     """
     if not has_angular_momentum(scene):
         raise TypeError(f"{type(scene).__name__} has no conserved angular momentum")
-    return scene.angular_momentum(_states(scene, state))
+    return cast(HasAngularMomentum, scene).angular_momentum(_states(scene, state))
 
 
 def end_points(scene: Scene, state: Float[ArrayLike, "*batch S"]) -> Float[Array, "*batch 2 D"]:
