@@ -335,7 +335,7 @@ class Explorer:
             pieces.append(points[0])
             line.set_data(*np.concatenate(pieces).T)
             if done == 0:
-                self._draw_configuration(state0, Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0], result=orb.result[0]), color)
+                self._draw_configuration(state0, jax.tree.map(lambda leaf: leaf[0], orb), color)
             done += len(points[0])
             if time.perf_counter() - drawn > REDRAW_SECONDS:
                 self._say(f"orbit {len(self.orbits) + 1} from ({x:.4g}, {y:.4g}): {done} collisions so far")
@@ -493,14 +493,14 @@ class Explorer:
         if self.orbits:
             last = self.orbits[-1]
             orb, _ = next(self._orbit_chunks(last.state0[None], self.chunk))
-            head = Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0], result=orb.result[0])
+            head = jax.tree.map(lambda leaf: leaf[0], orb)
             self._draw_configuration(last.state0, head, self._orbit_lines[-1][0].get_color())
 
     def _show_survey_orbit(self) -> None:
         """The configuration panel before any click: the first survey orbit."""
         states, _ = self.chart.seeds(self.scene, 1, self.invariants)
         orb, _ = next(self._orbit_chunks(states, self.chunk))
-        self._draw_configuration(states[0], Orbit(t=orb.t[0], contact=orb.contact[0], state=orb.state[0], result=orb.result[0]), "0.45")
+        self._draw_configuration(states[0], jax.tree.map(lambda leaf: leaf[0], orb), "0.45")
         self.configuration_axes.set_title(
             f"a survey orbit: its first {self.configuration_collisions} collisions", fontsize=10
         )
