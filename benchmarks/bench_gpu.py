@@ -303,7 +303,7 @@ def run_breakdown(jb, baseline, orbits, n, rounds):
 
         setattr(owner, name, timed_part)
 
-    timer(streaming, "_check_eagerly", "checks (state validation)")
+    timer(streaming, "check_eagerly", "checks (state validation)")
     timer(streaming._Engine, "__init__", "engine: pad, states to the device")
     timer(streaming._Engine, "initial_carry", "initial carry")
     timer(streaming._Engine, "run_chunk", "chunks (kernel calls, waited for)", wait=True)

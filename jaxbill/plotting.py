@@ -47,6 +47,7 @@ from jaxbill._scenes.circle.sections import (
 )
 from jaxbill._scenes.ellipse.sections import draw_ellipse_orbit
 from jaxbill._scenes.protocols import HasSection
+from jaxbill._scenes.walls.charts import draw_wall_billiard
 
 __all__ = [
     "orbit_colors",
@@ -450,41 +451,6 @@ def draw_walls_2d(
     return ax
 
 
-def draw_wall_billiard(
-    ax: Axes,
-    scene,
-    theta_range=(0.0, np.pi),
-    *,
-    color="k",
-    shade: bool = True,
-):
-    """The paper's billiard: floor ``kappa b(theta) = ell|cos theta|`` and ceiling ``h - ell|cos theta|``.
-
-    Drawn in lengths against ``kappa theta`` (aspect equal, so reflections look
-    specular); where the two walls cross (``2 ell |cos theta| > h``: the
-    stick does not fit) the strip is shaded.
-    """
-    h, ell = float(scene.h), float(scene.ell)
-    kappa = float(np.sqrt(float(scene.inertia) / float(scene.mass)))
-    theta = np.linspace(theta_range[0], theta_range[1], 1200)
-    floor = ell * np.abs(np.cos(theta))
-    ceiling = h - floor
-    ax.plot(kappa * theta, floor, color=color, lw=1.2)
-    ax.plot(kappa * theta, ceiling, color=color, lw=1.2)
-    if shade:
-        ax.fill_between(kappa * theta, floor, -0.05 * h, color="0.85", lw=0)
-        ax.fill_between(kappa * theta, ceiling, 1.05 * h, color="0.85", lw=0)
-        blocked = floor > ceiling
-        if blocked.any():
-            ax.fill_between(kappa * theta, -0.05 * h, 1.05 * h, where=blocked, color="0.7", lw=0)
-    ax.set_xlim(kappa * theta_range[0], kappa * theta_range[1])
-    ax.set_ylim(-0.05 * h, 1.05 * h)
-    ax.set_aspect("equal")
-    ax.set_xlabel(r"$\kappa\,\theta$ (length; $\kappa = \sqrt{I/M}$)")
-    ax.set_ylabel("z (length)")
-    return ax
-
-
 def draw_wall_flights(
     ax: Axes,
     scene,
@@ -505,7 +471,7 @@ def draw_wall_flights(
     potential barrier ``sin^2 theta = (I w_z)^2 / (2 I E')`` (dotted) keeps the
     stick away from the vertical.
     """
-    from jaxbill._scenes.walls.sections import _internal_energy_np, flight_paths
+    from jaxbill._scenes.walls.sections import flight_paths, internal_energy_np
 
     states = _np(orbit.state)
     n = len(states) if collisions is None else min(collisions, len(states))
@@ -523,7 +489,7 @@ def draw_wall_flights(
     if scene.state_size == 12:
         start = _np(state0)
         spin = float(scene.inertia) * start[11]
-        energy = float(_internal_energy_np(scene, start))
+        energy = float(internal_energy_np(scene, start))
         if spin != 0.0:
             edge = np.arcsin(min(1.0, abs(spin) / np.sqrt(2.0 * float(scene.inertia) * energy)))
             for angle in (edge, np.pi - edge):

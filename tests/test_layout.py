@@ -31,16 +31,64 @@ MODULES = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
 
 def _imports(path: pathlib.Path) -> set[str]:
     """The ``jaxbill`` modules that ``path`` imports, anywhere in the file."""
+    return {imported for imported, _ in _imported_names(path)}
+
+
+def _imported_names(path: pathlib.Path) -> set[tuple[str, str | None]]:
+    """``(module, name)`` for each ``from jaxbill... import name`` in ``path`` (``name`` None where the
+    import is of a module), anywhere in the file."""
     found = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("jaxbill"):
             assert node.level == 0, f"{path}: relative import of {node.module}"
             for alias in node.names:
                 submodule = f"{node.module}.{alias.name}"
-                found.add(submodule if submodule in MODULES else node.module)
+                found.add((submodule, None) if submodule in MODULES else (node.module, alias.name))
         elif isinstance(node, ast.Import):
-            found.update(a.name for a in node.names if a.name.startswith("jaxbill"))
+            found.update((a.name, None) for a in node.names if a.name.startswith("jaxbill"))
     return found
+
+
+# The layers, lowest first: a module imports from its own layer or a lower one, never from a
+# higher one or a sibling (the analyses, the checker and the runs know nothing of each other).
+LAYERS = (
+    {"_engine"},
+    {"_scenes"},
+    {"_analysis", "_check", "_runs"},
+    {"plotting", "_explorer", "studies", "_figures"},
+    {"jaxbill"},  # the namespace
+    {"cli"},  # the command, the one module above the namespace
+)
+
+
+def _layer_of(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "jaxbill"
+
+
+def layer_violations(graph: dict[str, set[str]]) -> set[tuple[str, str]]:
+    """Every import of ``graph`` (module -> modules it imports) that points up, or sideways between the
+    folders of one layer; the top-level user modules (``plotting``, the explorer, the figures, the
+    studies) may use each other."""
+    rank = {folder: position for position, layer in enumerate(LAYERS) for folder in layer}
+    bad = set()
+    for module, imported in graph.items():
+        own = _layer_of(module)
+        for target in imported:
+            other = _layer_of(target)
+            if rank[other] > rank[own] or (rank[other] == rank[own] == 2 and other != own):
+                bad.add((module, target))
+    return bad
+
+
+def private_imports(imports: dict[str, set[tuple[str, str | None]]]) -> set[tuple[str, str]]:
+    """Every ``from module import _name`` across modules: a private name stays in its module."""
+    return {
+        (module, f"{source}.{name}")
+        for module, names in imports.items()
+        for source, name in names
+        if name is not None and name.startswith("_") and not name.startswith("__")
+    }
 
 
 def test_every_module_lives_in_its_folder():
@@ -53,14 +101,14 @@ def test_every_module_lives_in_its_folder():
 
 
 def test_the_engine_knows_no_scene_and_no_analysis():
-    """The engine is what every scene plugs into: it may not import a scene, an analysis or a check."""
+    """The engine is what every scene plugs into: it owns the interface it calls (``_engine.interface``) and
+    imports no scene, analysis, check or run."""
     offending = {
         (name, imported)
         for name, path in MODULES.items()
         if name.startswith("jaxbill._engine")
         for imported in _imports(path)
-        if imported.startswith(("jaxbill._scenes.", "jaxbill._analysis", "jaxbill._check"))
-        and imported != "jaxbill._scenes.protocols"
+        if imported.startswith(("jaxbill._scenes", "jaxbill._analysis", "jaxbill._check", "jaxbill._runs"))
     }
     assert not offending, offending
 
@@ -92,13 +140,39 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
 def test_no_import_cycles_in_the_package():
     """No module imports one that imports it back, directly or not (imports inside functions count).
 
-    The namespace ``jaxbill`` and the folders' ``__init__`` files are left out:
-    they hold no code that imports back.
+    The namespace ``jaxbill`` is a node like any module (a study that did ``import jaxbill`` would close a
+    cycle through it); the folders' ``__init__`` files, which hold only docstrings, are left out.
     """
-    packages = {name for name, path in MODULES.items() if path.name == "__init__.py"}
+    packages = {name for name, path in MODULES.items() if path.name == "__init__.py" and name != "jaxbill"}
     graph = {name: _imports(path) - packages for name, path in MODULES.items() if name not in packages}
     cycle = find_cycle(graph)
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_layers_only_point_down():
+    """The engine, then the scenes, then the analyses, the checker and the runs (which know nothing of one
+    another), then the pictures, the explorer and the studies, then the namespace, then the command."""
+    packages = {name for name, path in MODULES.items() if path.name == "__init__.py" and name != "jaxbill"}
+    graph = {name: _imports(path) - packages for name, path in MODULES.items() if name not in packages}
+    assert not layer_violations(graph), sorted(layer_violations(graph))
+
+
+def test_no_private_name_crosses_a_module():
+    imports = {name: _imported_names(path) for name, path in MODULES.items()}
+    assert not private_imports(imports), sorted(private_imports(imports))
+
+
+def test_each_rule_fails_on_a_violation():
+    """Each rule, on a synthetic package that breaks it."""
+    assert layer_violations({"jaxbill._engine.step": {"jaxbill._scenes.protocols"}})  # up
+    assert layer_violations({"jaxbill._scenes.circle.scene": {"jaxbill._check.checker"}})  # up
+    assert layer_violations({"jaxbill._analysis.chaos": {"jaxbill._runs.streaming"}})  # sideways
+    assert layer_violations({"jaxbill.studies.small_stick": {"jaxbill"}})  # the namespace, from below it
+    assert not layer_violations({"jaxbill._analysis.chaos": {"jaxbill._scenes.protocols", "jaxbill._engine.step"}})
+    assert not layer_violations({"jaxbill.cli": {"jaxbill", "jaxbill._explorer"}})
+    assert private_imports({"jaxbill._analysis.chaos": {("jaxbill._engine.collision", "_poison")}})
+    assert not private_imports({"jaxbill.cli": {("jaxbill", "__version__"), ("jaxbill._engine.collision", "orbit")}})
+    assert find_cycle({"jaxbill": {"jaxbill.studies.arnold_web"}, "jaxbill.studies.arnold_web": {"jaxbill"}})
 
 
 def test_the_cycle_finder_finds_cycles():

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._engine.collision import _collide
+from jaxbill._engine.collision import collide_unchecked
 from jaxbill._engine.tangent import dynamical_indices, phase_velocity, tangent_map
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -80,7 +80,7 @@ def well_conditioned_states(scene, count, seed):
     return np.array(out)
 
 
-_collide_jit = jax.jit(_collide)
+_collide_jit = jax.jit(collide_unchecked)
 
 
 @pytest.fixture(scope="module", params=list(SCENES))
@@ -88,7 +88,7 @@ def scene(request):
     return jb.StickInCircle(**SCENES[request.param])
 
 
-_map_jit = jax.jit(lambda sc, s: _collide(sc, s)[:2])
+_map_jit = jax.jit(lambda sc, s: collide_unchecked(sc, s)[:2])
 _tangent_jit = jax.jit(tangent_map, static_argnames=("flow", "mode"))
 
 
@@ -136,7 +136,7 @@ def test_forward_and_reverse_mode_agree(scene):
         np.testing.assert_allclose(jf, jr, rtol=0, atol=1e-12 * np.max(np.abs(jf)))
 
 
-_parameter_jacobian = jax.jit(lambda sc, s: jax.jacfwd(lambda sc_: _collide(sc_, s)[:2])(sc))
+_parameter_jacobian = jax.jit(lambda sc, s: jax.jacfwd(lambda sc_: collide_unchecked(sc_, s)[:2])(sc))
 
 
 def test_parameter_derivatives_match_central_differences(scene):

@@ -50,14 +50,14 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._engine.collision import _collide
+from jaxbill._engine.collision import collide_unchecked
 from jaxbill._engine.tangent import dynamical_frame, tangent_map
 
 FD_STEP = 1e-6
 FD_RTOL = 1e-6
 N = 10000
 
-_map_jit = jax.jit(lambda sc, s: _collide(sc, s)[:2])
+_map_jit = jax.jit(lambda sc, s: collide_unchecked(sc, s)[:2])
 _frame_jit = jax.jit(dynamical_frame)
 
 
@@ -73,7 +73,7 @@ def _maps(scene, s):
 @jax.jit
 def _next_contact(scene, s):
     """Flight time, contact, and the gaps and approach speeds just before the contact."""
-    _, dt, contact = _collide(scene, s)
+    _, dt, contact = collide_unchecked(scene, s)
     pre = scene.flight(s, jnp.where(jnp.isfinite(dt), dt, 0.0))
     return dt, contact, scene.gaps(s), scene.gaps(pre), scene.approach_speeds(pre)
 

@@ -17,7 +17,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._analysis.lyapunov import grown, log_of, no_growth
-from jaxbill._engine.collision import _check_eagerly, _poison_if
+from jaxbill._engine.collision import check_eagerly, poison_if
 from jaxbill._engine.drivers import map_over_orbits
 from jaxbill._engine.results import first_failure, start_result
 from jaxbill._engine.step import orbit_constants
@@ -60,7 +60,7 @@ def _ftle_one(scene, state0, n, vector0):
     (_, _, growth, t, result), _ = jax.lax.scan(step, init, None, length=n)
     log_growth = log_of(growth)
     # Later states come from the map itself; only the start needs checking.
-    return (*_poison_if(~valid, log_growth / t, log_growth / n, t), result)
+    return (*poison_if(~valid, log_growth / t, log_growth / n, t), result)
 
 
 @eqx.filter_jit
@@ -90,7 +90,7 @@ def finite_time_lyapunov(
         n: number of collisions (Python int, static).
     """
     n = check_count("n", n, 1, "number of collisions")
-    _check_eagerly(scene, states)  # before any conversion: a bool or complex state is refused, not cast
+    check_eagerly(scene, states)  # before any conversion: a bool or complex state is refused, not cast
     states = jnp.atleast_2d(jnp.asarray(states, jnp.float64))
     k = dynamical_size(scene)
     v0 = np.random.default_rng(7).standard_normal(k)

@@ -67,7 +67,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine import pallas
-from jaxbill._engine.collision import _check_eagerly, _poison_if
+from jaxbill._engine.collision import check_eagerly, poison_if
 from jaxbill._engine.drivers import map_over_orbits
 from jaxbill._engine.results import first_failure, start_result
 from jaxbill._engine.step import orbit_constants
@@ -237,7 +237,7 @@ def _indicators_one(scene, state0, tangent0, n, per, n_history):
     carry, _ = jax.lax.scan(collision, carry, None, length=rest)
     _, _, t, _, (log_norm, fli, tau, _, y, area), result = carry
     # Later states come from the map itself; only the start needs checking.
-    poisoned = _poison_if(~valid, fli, log_norm, fli_hist, _mean_megno(area, tau), y, megno_hist, t_hist, t)
+    poisoned = poison_if(~valid, fli, log_norm, fli_hist, _mean_megno(area, tau), y, megno_hist, t_hist, t)
     return (*poisoned, result)
 
 
@@ -287,7 +287,7 @@ def _run(scene, states, n, per, tangent0, n_history):
         raise ValueError(f"per must be one of {PER}; got {per!r}")
     n = check_count("n", n, 1, "number of collisions")
     n_history = check_count("n_history", n_history, 1, "checkpoints kept", MAX_STORED_COUNT)
-    _check_eagerly(scene, states)  # before any conversion: a bool or complex state is refused, not cast
+    check_eagerly(scene, states)  # before any conversion: a bool or complex state is refused, not cast
     states = jnp.asarray(states, jnp.float64)
     tangent0 = _checked_tangent(scene, states, tangent0, per)
     n_hist = max(1, min(n_history, n))

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
-from jaxbill._engine.collision import _check_eagerly, _poison_if
+from jaxbill._engine.collision import check_eagerly, poison_if
 from jaxbill._engine.drivers import map_over_orbits
 from jaxbill._engine.results import first_failure, start_result
 from jaxbill._engine.step import orbit_constants
@@ -187,7 +187,7 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
     history = _descending(history)
     exponents = _descending(exponents)
     # Later states come from the map itself; only the start needs checking.
-    exponents, history, t_hist, t = _poison_if(~valid, exponents, history, t_hist, t)
+    exponents, history, t_hist, t = poison_if(~valid, exponents, history, t_hist, t)
     return LyapunovSpectrum(
         exponents=exponents,
         history=history,
@@ -287,7 +287,7 @@ def lyapunov_spectrum(
     n_history = check_count("n_history", n_history, 1, "checkpoints kept", MAX_STORED_COUNT)
     if n < qr_every or n % qr_every:
         raise ValueError(f"n must be a positive multiple of qr_every = {qr_every}; got {n}")
-    _check_eagerly(scene, state0)
+    check_eagerly(scene, state0)
     n_dim = dynamical_size(scene)
     k = n_dim if per == "time" else n_dim - 1
     frame0 = _initial_vectors(n_dim, k)

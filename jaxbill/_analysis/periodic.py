@@ -101,7 +101,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike, Bool, Complex, Float, Int
 
-from jaxbill._engine.collision import _check_eagerly, _collide
+from jaxbill._engine.collision import check_eagerly, collide_unchecked
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count, require_x64
 from jaxbill._scenes.circle.scene import StickInCircle  # the rotation solver is its (periodic_symmetry "rotation")
 from jaxbill._scenes.protocols import (
@@ -182,7 +182,7 @@ def _iterate(scene, z, p):
 
     def step(carry, _):
         state, t = carry
-        new_state, dt, contact = _collide(scene, state)
+        new_state, dt, contact = collide_unchecked(scene, state)
         return (new_state, t + dt), (new_state, contact, dt)
 
     s0 = reduced_state(scene, z, 0.0)
@@ -373,7 +373,7 @@ def _periodic_orbit(
 ):
     problem = _Problem(scene, energy, angular_momentum, rotation, p, pin_l, pin_rotation)
     if zeta0 is None:
-        start, _, contact = _collide(scene, guess)
+        start, _, contact = collide_unchecked(scene, guess)
         z0, frame_phi = reduced_coordinates(scene, start, contact)
         zeta0 = jax.lax.stop_gradient(problem.zeta(z0))
     zeta, jac = _solve(problem, zeta0, max_steps)
@@ -504,7 +504,7 @@ class _PlainProblem(eqx.Module):
 
     def iterate(self, s0):
         def step(s, _):
-            after, dt, contact = _collide(self.scene, s)
+            after, dt, contact = collide_unchecked(self.scene, s)
             return after, (after, dt, contact)
 
         _, (states, flights, contacts) = jax.lax.scan(step, s0, None, length=self.p)
@@ -545,7 +545,7 @@ def _plain_periodic_orbit(
     parabolic_tol``, elliptic otherwise).
     """
     del angular_momentum, rotation, pin_l, pin_rotation  # nothing is conserved but E; no rotation
-    start, _, first_contact = _collide(scene, guess)
+    start, _, first_contact = collide_unchecked(scene, guess)
     # The gap of the contact that touched (the scene's contact code of each gap, ``gap_codes``).
     contact_index = jnp.zeros((), jnp.int32)
     for gap, code in enumerate(scene.gap_codes):
@@ -743,7 +743,7 @@ def find_periodic_orbit(
         a batch of guesses).
     """
     p = _check_period(period)
-    _check_eagerly(scene, guess, single=True)
+    check_eagerly(scene, guess, single=True)
     guess = jnp.asarray(guess, jnp.float64)
     e, l0, theta, pin_l, pin_rotation = _targets(scene, guess, energy, angular_momentum, rotation)
     orbit, _ = _find_jit(scene, guess, p, e, l0, theta, pin_l, pin_rotation, max_steps, tol, parabolic_tol)
@@ -812,7 +812,7 @@ def find_periodic_orbits(
     size = scene.state_size
     if np.ndim(guesses) != 2 or np.shape(guesses)[1] != size:
         raise ValueError(f"guesses must have shape (B, {size}); got {np.shape(guesses)}")
-    _check_eagerly(scene, guesses)
+    check_eagerly(scene, guesses)
     guesses = jnp.asarray(guesses, jnp.float64)
     e, l0, theta, pin_l, pin_rotation = _targets(scene, guesses[0], energy, angular_momentum, rotation)
     b = guesses.shape[0]

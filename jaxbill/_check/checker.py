@@ -65,12 +65,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-from jaxtyping import ArrayLike, Float, Int, Real
+from jaxtyping import ArrayLike, Real
 
+from jaxbill._check.report import (
+    CheckFlag,
+    CheckReport,
+    CheckResult,
+    certified_positive,
+    comparison_report,
+    first_index,
+    wrap_angle,
+)
+from jaxbill._check.walls import ReducedWallsFlight
 from jaxbill._engine.collision import collide as _collide
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
-from jaxbill._scenes.protocols import RigidBodyColumn, Scene
+from jaxbill._scenes.protocols import ReducedWalls, RigidBodyColumn, Scene, StickColumn
 
 __all__ = ["check", "CheckResult", "CheckReport", "CheckFlag", "ColumnFlight", "BodyColumnFlight"]
 
@@ -445,24 +455,6 @@ def _wall_shapes(flight: BodyColumnFlight, positions: jax.Array):
     return jax.vmap(one)(positions)
 
 
-def _certified_positive(f0, p0, f1, p1, h, K):
-    """True where ``f > 0`` on the open step ``(0, h)`` is proven.
-
-    ``f0, p0`` (``f1, p1``) are value and slope at the step's start (end) and
-    ``|f''| <= K``. Taylor bounds from the left and from the right prove
-    positivity on ``(0, sL)`` and ``(h - sR, h)``; the interpolation bound
-    ``f >= lin - K s (h - s) / 2`` covers what is left between them.
-    """
-    K = jnp.maximum(K, 1e-300)
-    sL = jnp.where(f0 >= 0.0, (p0 + jnp.sqrt(jnp.maximum(p0 * p0 + 2.0 * K * f0, 0.0))) / K, 0.0)
-    sR = jnp.where(f1 >= 0.0, (-p1 + jnp.sqrt(jnp.maximum(p1 * p1 + 2.0 * K * f1, 0.0))) / K, 0.0)
-    covered = sL + sR > h
-    lo, hi = jnp.minimum(sL, h), jnp.maximum(h - sR, 0.0)
-    s = jnp.clip(0.5 * h - (f1 - f0) / (K * h), lo, hi)
-    interp = f0 + (f1 - f0) * s / h - 0.5 * K * s * (h - s)
-    return (f0 >= 0.0) & (f1 >= 0.0) & (covered | ((interp > 0.0) & (h > 0.0)) | (h == 0.0))
-
-
 def _vector_field(t, y, args):
     return jnp.concatenate([y[3:6], jnp.zeros(3, y.dtype)])
 
@@ -528,7 +520,7 @@ def _segment(column: _StraightColumn, y0, dtmax, solver, rtol, atol, root_tol, m
     # The event itself is a root of the contacting wall: certify up to it only.
     at_event = is_last[:, None] & (gap_index[None, :] == k_index)
     f1 = jnp.where(at_event, jnp.maximum(f1, 0.0), f1)
-    ok = _certified_positive(f0, p0, f1, p1, (t_end - t_start)[:, None], K)
+    ok = certified_positive(f0, p0, f1, p1, (t_end - t_start)[:, None], K)
     bad = valid[:, None] & ~ok
     if column.guards_curvature:
         # A bound that was sampled is checked wherever the flight goes: at both ends of every step.
@@ -553,108 +545,6 @@ def _segment(column: _StraightColumn, y0, dtmax, solver, rtol, atol, root_tol, m
 
 
 # ---------------------------------------------------------------------------
-# results
-# ---------------------------------------------------------------------------
-@dataclasses.dataclass(frozen=True)
-class CheckFlag:
-    """Where the checker stopped trusting itself: collision ``index`` (0-based,
-    the one that could not be certified), a ``kind`` from ``graze``,
-    ``max_steps``, ``root_find``, ``not_approaching``, ``corner``, ``curvature``
-    (a wall bent more than the bound that certifies the steps), and a message."""
-
-    index: int
-    kind: str
-    message: str
-
-
-@dataclasses.dataclass(frozen=True)
-class CheckReport:
-    """Comparison of the checker's collisions with ``jb.orbit``.
-
-    Deviations are the largest over the compared collisions, each in scaled
-    units: time in ``R / V``, position in ``R``, ``alpha`` in radians (mod 2 pi),
-    velocity in ``V`` and spin in ``V / sqrt(I/M)`` (``V / R`` for a point or a
-    body that never turns), ``V = sqrt(2 E / M)`` the speed scale of the orbit
-    and ``R`` the flight's unit of length (the circle's radius, the table's size).
-    """
-
-    n: int  # collisions asked for
-    n_checked: int  # collisions the checker certified
-    horizon: int  # collisions before a 1e-12-perturbed jb.orbit departs by > tol
-    n_compared: int  # min(n_checked, horizon)
-    tol: float
-    max_time: float
-    max_position: float
-    max_angle: float
-    max_velocity: float
-    max_spin: float
-    first_contact_mismatch: int | None
-    first_deviation: int | None  # first index with a scaled deviation > tol
-    # One-collision comparison over all certified collisions (no chaos horizon):
-    # jb.collide from the checker's state i-1 against the checker's collision i.
-    local_max_time: float
-    local_max_state: float  # largest scaled position/angle/velocity/spin deviation
-    local_first_mismatch: int | None  # first i with another contact or a deviation > tol
-    flags: tuple
-    n_steps: int
-    seconds: float
-
-    @property
-    def agree(self) -> bool:
-        """Contacts equal and every scaled deviation within ``tol`` up to ``n_compared``."""
-        return (
-            self.first_contact_mismatch is None and self.first_deviation is None and self.local_first_mismatch is None
-        )
-
-    @property
-    def trusted(self) -> bool:
-        """The checker certified all ``n`` collisions (no flag)."""
-        return not self.flags
-
-    def __str__(self) -> str:
-        lines = [
-            f"jaxbill.check: {self.n_checked}/{self.n} collisions certified, "
-            f"{self.n_compared} compared (chaos horizon {self.horizon}), "
-            f"{self.n_steps} solver steps, {self.seconds:.2f} s",
-            f"  max deviation (scaled): time {self.max_time:.2e}  position {self.max_position:.2e}  "
-            f"angle {self.max_angle:.2e}  velocity {self.max_velocity:.2e}  spin {self.max_spin:.2e}",
-            f"  one collision at a time, all {self.n_checked}: time {self.local_max_time:.2e}  "
-            f"state {self.local_max_state:.2e}"
-            + ("" if self.local_first_mismatch is None else f"  MISMATCH from {self.local_first_mismatch}"),
-            "  contacts: "
-            + (
-                "all equal"
-                if self.first_contact_mismatch is None
-                else f"first mismatch at {self.first_contact_mismatch}"
-            ),
-            "  verdict: "
-            + ("AGREE" if self.agree else "DISAGREE")
-            + f" within tol {self.tol:.1e}"
-            + ("" if self.first_deviation is None else f" (first deviation > tol at {self.first_deviation})"),
-        ]
-        for f in self.flags:
-            lines.append(f"  FLAG at collision {f.index} [{f.kind}]: {f.message}")
-        return "\n".join(lines)
-
-
-@dataclasses.dataclass(frozen=True)
-class CheckResult:
-    """The checker's own collision sequence (``t`` (m,), ``contact`` (m,),
-    ``state`` (m, 6), the usual layout, state just after each collision, alpha
-    wrapped into ``[-pi, pi)``; ``m <= n`` certified collisions), the reference
-    ``orbit`` from ``jb.orbit`` and the comparison ``report``."""
-
-    t: Float[np.ndarray, " m"]
-    contact: Int[np.ndarray, " m"]
-    state: Float[np.ndarray, "m S"]
-    orbit: object
-    report: CheckReport
-
-    def __str__(self) -> str:
-        return str(self.report)
-
-
-# ---------------------------------------------------------------------------
 # comparison helpers
 # ---------------------------------------------------------------------------
 def _scaled_deviation(a, b, scales):
@@ -672,42 +562,6 @@ def _scaled_deviation(a, b, scales):
         ],
         axis=1,
     )
-
-
-def _comparison_report(n, contact, ref_contact, horizon, tol, dev, local_max, local_bad, flags, n_steps, start):
-    """The ``CheckReport`` of a checker run: ``dev`` holds the scaled deviations
-    ``(m, 5)`` of its first ``m = min(collisions checked, horizon)`` collisions."""
-    m = len(dev)
-    maxima = dev.max(axis=0) if m else np.zeros(5)
-    return CheckReport(
-        n=n,
-        n_checked=len(contact),
-        horizon=horizon,
-        n_compared=m,
-        tol=tol,
-        max_time=float(maxima[0]),
-        max_position=float(maxima[1]),
-        max_angle=float(maxima[2]),
-        max_velocity=float(maxima[3]),
-        max_spin=float(maxima[4]),
-        first_contact_mismatch=_first(contact[:m] != ref_contact[:m]),
-        first_deviation=_first(np.any(dev > tol, axis=1)),
-        local_max_time=float(local_max[0]),
-        local_max_state=float(local_max[1:].max()),
-        local_first_mismatch=_first(local_bad),
-        flags=tuple(flags),
-        n_steps=n_steps,
-        seconds=time.perf_counter() - start,
-    )
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
-
-def _first(mask):
-    idx = np.flatnonzero(mask)
-    return int(idx[0]) if idx.size else None
 
 
 # ---------------------------------------------------------------------------
@@ -809,10 +663,21 @@ def check(
     if any(np.ndim(leaf) for leaf in jax.tree_util.tree_leaves(scene)):
         raise NotImplementedError("jaxbill.check takes one scene, not a batch; loop over a batch")
     scene.check()
-    flight = flight_of()
-    if isinstance(flight, RigidBodyColumn):  # a description: the checker builds the flight itself
-        flight = BodyColumnFlight.of(flight)
-    return flight.check(scene, state0, n, **options)
+    return flight_for(scene, flight_of()).check(scene, state0, n, **options)
+
+
+def flight_for(scene, description):
+    """The flight the checker integrates for a scene's ``checker_flight()`` description (a geometry the
+    scene states; the integrator is the checker's own)."""
+    if isinstance(description, RigidBodyColumn):
+        return BodyColumnFlight.of(description)
+    if isinstance(description, StickColumn):
+        return ColumnFlight(
+            scene=scene, **{f.name: getattr(description, f.name) for f in dataclasses.fields(description)}
+        )
+    if isinstance(description, ReducedWalls):
+        return ReducedWallsFlight(planar=description.planar)
+    return description  # a flight of the scene's own (``CheckerFlight``)
 
 
 # ``jb.check``'s defaults, for a flight's ``check`` called with some options only.
@@ -866,7 +731,7 @@ def _check_column(
             # The column is periodic in z (period 2 pi sqrt(I/M)): keeping z small
             # keeps the integrator's rounding per step at ulp(z) small.
             if not column.frozen:  # a body that never turns keeps its alpha exactly, as jb.orbit does
-                y = y.at[2].set(scale * _wrap(float(y[2]) / scale))
+                y = y.at[2].set(scale * wrap_angle(float(y[2]) / scale))
             t_ev, y_new, k_index, flag, flag_time, n_steps = _segment(
                 column, y, jnp.asarray(step), solver, rtol, atol, root_tol, chunk_steps, corner_tol
             )
@@ -899,7 +764,7 @@ def _check_column(
         y = y_new
         if column.frozen:
             y = y.at[5].set(0.0)
-        alpha = float(y[2]) / scale if column.frozen else _wrap(float(y[2]) / scale)
+        alpha = float(y[2]) / scale if column.frozen else wrap_angle(float(y[2]) / scale)
         times.append(t_abs)
         contacts.append(column.gap_codes[int(k_index)])
         states.append([float(y[0]), float(y[1]), alpha, float(y[3]), float(y[4]), float(y[5]) / scale])
@@ -935,7 +800,7 @@ def _check_column(
         mine = (np.asarray(perturbed.t[b]), np.asarray(perturbed.state[b]))
         pd = _scaled_deviation(mine, (ref_t, ref_s), scales)
         departed |= (np.asarray(perturbed.contact[b]) != ref_c) | np.any(pd > tol, axis=1)
-    horizon = _first(departed)
+    horizon = first_index(departed)
     horizon = n if horizon is None else horizon
 
     m = min(len(t), horizon)
@@ -950,5 +815,5 @@ def _check_column(
         local_max = local.max(axis=0)
     else:
         local_bad, local_max = np.zeros(0, bool), np.zeros(5)
-    report = _comparison_report(n, contact, ref_c, horizon, tol, dev, local_max, local_bad, flags, total_steps, start)
+    report = comparison_report(n, contact, ref_c, horizon, tol, dev, local_max, local_bad, flags, total_steps, start)
     return CheckResult(t=t, contact=contact, state=state, orbit=reference, report=report)

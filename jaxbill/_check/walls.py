@@ -119,9 +119,10 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from jaxbill._check.checker import CheckFlag, CheckResult, _certified_positive, _comparison_report, _first, _wrap
+from jaxbill._check.report import CheckFlag, CheckResult, certified_positive, comparison_report, first_index, wrap_angle
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
+from jaxbill._scenes.protocols import ReducedWalls
 
 __all__ = ["check_walls"]
 
@@ -267,7 +268,7 @@ def _segment(core: _Reduced, y0, t1, dtmax, solver, rtol, atol, root_tol, chunk_
         (jnp.arange(4)[None, :] == k_index) | (f1 >= -corner_tol * core.h)
     )
     f1 = jnp.where(at_event, jnp.maximum(f1, 0.0), f1)
-    ok = _certified_positive(f0, p0, f1, p1, (t_end - t_start)[:, None], K[:, None])
+    ok = certified_positive(f0, p0, f1, p1, (t_end - t_start)[:, None], K[:, None])
     bad = valid & ~jnp.all(ok, axis=1)
     bad_step = jnp.argmax(bad)
 
@@ -374,7 +375,7 @@ def _from_2d(s: np.ndarray):
 
 
 def _to_2d(y: np.ndarray, vxy: np.ndarray) -> np.ndarray:
-    return np.array([y[0], y[2], _wrap(y[3]), vxy[0], y[5], y[6]])
+    return np.array([y[0], y[2], wrap_angle(y[3]), vxy[0], y[5], y[6]])
 
 
 # ---------------------------------------------------------------------------
@@ -439,9 +440,9 @@ def _flight(params, y, vxy, spin, sin_min, cfg: _Settings):
     while True:
         # Keep the angles small: the solver's rounding per step is ulp(angle).
         y = y.copy()
-        y[4] = _wrap(y[4])
+        y[4] = wrap_angle(y[4])
         if spin == 0.0:
-            y[3] = _wrap(y[3])
+            y[3] = wrap_angle(y[3])
         windows = [(until, d) for until, d in windows if until > t_flight + 1e-12 * max(until, 1e-300)]
         step = min([coarse] + [d for _, d in windows])
         t1 = min([math.inf] + [until for until, _ in windows]) - t_flight
@@ -663,9 +664,9 @@ def check_walls(
     """
     start = time.perf_counter()
     flight = scene.checker_flight() if hasattr(scene, "checker_flight") else None
-    if not isinstance(flight, ReducedWallsFlight):
+    if not isinstance(flight, ReducedWalls):
         raise TypeError(
-            f"check_walls takes a scene whose checker flight is a ReducedWallsFlight "
+            f"check_walls takes a scene whose checker flight is the ReducedWalls "
             f"(StickBetweenWalls2D or 3D), not {type(scene).__name__}"
         )
     n = check_count("n", n, 1, "number of collisions", MAX_STORED_COUNT)
@@ -784,11 +785,11 @@ def check_walls(
         mine = (np.asarray(perturbed.t[b]), np.asarray(perturbed.state[b]))
         pd = _scaled_deviation(mine, (ref_t, ref_s), scales, planar_scene)
         departed |= (np.asarray(perturbed.contact[b]) != ref_c) | np.any(pd > tol, axis=1)
-    horizon = _first(departed)
+    horizon = first_index(departed)
     horizon = n if horizon is None else horizon
 
     m = min(len(t), horizon)
     dev = _scaled_deviation((t[:m], state[:m]), (ref_t[:m], ref_s[:m]), scales, planar_scene)
 
-    report = _comparison_report(n, contact, ref_c, horizon, tol, dev, local_max, local_bad, flags, total_steps, start)
+    report = comparison_report(n, contact, ref_c, horizon, tol, dev, local_max, local_bad, flags, total_steps, start)
     return CheckResult(t=t, contact=contact, state=state, orbit=reference, report=report)

@@ -10,6 +10,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.chunks import Plan, fresh_carry
 from jaxbill._engine.drivers import Batch, choose_driver, chunk_function
+from jaxbill._engine.interface import SEVERAL_CONTACTS, Scene
 from jaxbill._engine.serial import orbit_chunk
 from jaxbill._engine.sharding import DeviceChoice
 from jaxbill._engine.step import advance, orbit_constants
@@ -22,7 +23,6 @@ from jaxbill._engine.validation import (
     is_concrete,
     require_x64,
 )
-from jaxbill._scenes.protocols import SEVERAL_CONTACTS, Scene
 
 CORNER = SEVERAL_CONTACTS  # the stick in a circle's name for it: both ends at once
 
@@ -49,15 +49,18 @@ class Orbit(eqx.Module):
     result: Int[Array, "*batch"]
 
 
-def _poison_if(bad, *arrays):
+def poison_if(bad, *arrays):
+    """``arrays`` with NaN (floats) or 0 (integers) where ``bad``: how traced input too bad to run reports."""
     return tuple(
         jnp.where(bad, jnp.nan, a) if jnp.issubdtype(a.dtype, jnp.floating) else jnp.where(bad, 0, a) for a in arrays
     )
 
 
-def _collide(scene: Scene, state: jax.Array):
+def collide_unchecked(scene: Scene, state: jax.Array):
+    """``collide`` without its eager checks, for code that traces it (a tangent map, a periodic-orbit
+    residual): an invalid state is poisoned, never refused."""
     state = jnp.asarray(state, dtype=jnp.float64)
-    return _poison_if(~scene.is_valid(state), *advance(scene, state, orbit_constants(scene, state)))
+    return poison_if(~scene.is_valid(state), *advance(scene, state, orbit_constants(scene, state)))
 
 
 def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, " S"], Float[Array, ""], Int[Array, ""]]:
@@ -123,15 +126,15 @@ def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, "
     dtype of ``state`` and an unbatched ``scene`` are checked under ``jit``
     too (``ValueError``); ``RuntimeError`` if ``jax_enable_x64`` is off.
     """
-    _check_eagerly(scene, state, single=True)
+    check_eagerly(scene, state, single=True)
     new_state, dt, contact = _collide_jit(scene, jnp.asarray(state, dtype=jnp.float64))
     return new_state, dt, contact
 
 
-_collide_jit = eqx.filter_jit(_collide)
+_collide_jit = eqx.filter_jit(collide_unchecked)
 
 
-def _check_eagerly(scene, state, *, single: bool = False) -> None:
+def check_eagerly(scene, state, *, single: bool = False) -> None:
     """The checks at every public entry point, before anything is compiled.
 
     Static ones (float64 on, the state's shape and dtype, one scene rather
@@ -222,7 +225,7 @@ def orbit(scene: Scene, state0: Float[ArrayLike, "*batch S"], n: int, *, driver:
         RuntimeError: with ``jax_enable_x64`` turned off.
     """
     n = check_orbit_length(n)
-    _check_eagerly(scene, state0)
+    check_eagerly(scene, state0)
     concrete = is_concrete(state0) and all(is_concrete(x) for x in jax.tree_util.tree_leaves(scene))
     if concrete and jnp.ndim(state0) == 2 and jax.process_count() == 1:
         return orbit_sharded(scene, state0, n, driver=driver)
@@ -266,7 +269,7 @@ def orbit_sharded(
     states0 = np.asarray(states0, dtype=np.float64)
     if states0.ndim != 2:
         raise ValueError(f"states0 must be a batch of shape (B, {scene.state_size}); got shape {states0.shape}")
-    _check_eagerly(scene, states0)
+    check_eagerly(scene, states0)
     batch = Batch(scene, states0, devices, driver, record="states")
     orbit = _orbit_of(*batch.run_chunk(_orbit_plan(n), batch.fresh_carry(), 0, n))
     return jax.tree.map(lambda a: a[: batch.batch], orbit) if batch.lanes != batch.batch else orbit

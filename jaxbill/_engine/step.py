@@ -1,7 +1,7 @@
 """One collision of any scene, built from the scene's own pieces: the reference every driver runs.
 
 A scene answers four questions about one orbit (all pure, traceable functions
-of one orbit's values; see ``jaxbill._scenes.protocols.Scene``). A state is passed to them
+of one orbit's values; see ``jaxbill._engine.interface.Scene``). A state is passed to them
 as its *components*, a tuple of ``S`` scalars (or of equal-shaped arrays, one
 element per orbit), and they return tuples: no slicing, stacking, gathering or
 reduction over a state or over the gaps, so that the same functions run under
@@ -49,10 +49,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbill._engine.first_root import REFUSED, first_root, root_step, search_start, select, with_curvatures
+from jaxbill._engine.interface import NO_CONTACT
 from jaxbill._engine.results import collision_status
 from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT, TWO_PI, cos_sin_polynomial, remainder_two_pi
 from jaxbill._engine.validation import is_concrete
-from jaxbill._scenes.protocols import NO_CONTACT
 
 # Static bound on root-search steps per collision. Typical collisions take a
 # handful; a grazing departure can take a few hundred.

@@ -58,10 +58,10 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int
 
-from jaxbill._engine.collision import _collide
+from jaxbill._engine.collision import collide_unchecked
+from jaxbill._engine.interface import Scene
 from jaxbill._engine.step import advance_components, components, orbit_constants, stacked
 from jaxbill._engine.validation import check_state_static, check_unbatched_scene, require_x64
-from jaxbill._scenes.protocols import Scene
 
 
 class _Flows(Scene, Protocol):
@@ -177,7 +177,7 @@ def phase_velocity(
 
 
 def _map_with_time(scene: Scene, state: jax.Array):
-    new_state, dt, _ = _collide(scene, state)
+    new_state, dt, _ = collide_unchecked(scene, state)
     return new_state, dt
 
 
@@ -346,7 +346,7 @@ def tangent_map(
     check_state_static(scene, state, single=True)
     state = jnp.asarray(state, dtype=jnp.float64)
     jac = jax.jacfwd if mode == "forward" else jax.jacrev
-    new_state, dt, contact = _collide(scene, state)
+    new_state, dt, contact = collide_unchecked(scene, state)
     d_state, d_time = jac(lambda s: _map_with_time(scene, s))(state)
     if flow:
         d_state = d_state - jnp.outer(cast(_Flows, scene).phase_velocity(new_state), d_time)

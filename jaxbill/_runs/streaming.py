@@ -31,7 +31,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Float, Int
 
 from jaxbill._engine.chunks import CONTACT_CODES, Carry, Plan
-from jaxbill._engine.collision import _check_eagerly
+from jaxbill._engine.collision import check_eagerly
 from jaxbill._engine.drivers import Batch
 from jaxbill._engine.results import Result
 from jaxbill._engine.sharding import DeviceChoice
@@ -580,7 +580,7 @@ def run(
         chunk = check_count("chunk", chunk, 1, "collisions per orbit per compiled call")
     if progress not in (None, True, False):
         raise ValueError(f"progress must be None, True or False; got {progress!r}")
-    _check_eagerly(scene, state0)
+    check_eagerly(scene, state0)
     state0 = np.asarray(state0, dtype=np.float64)
     out_dir = _resolve_out(out)
     # The directory is locked before its checkpoint is read: two calls racing

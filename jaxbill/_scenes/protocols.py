@@ -1,9 +1,9 @@
-"""What the collision engine and the analyses ask of a scene, and the contact codes every scene shares.
+"""What the analyses ask of a scene, beyond the engine's ``Scene`` (``jaxbill._engine.interface``,
+re-exported here with the contact codes every scene shares).
 
 A scene is an ``equinox.Module``: its physical parameters are differentiable
 leaves and its *kind* (which closed forms apply) is static, so that each scene
-compiles only the code it needs. The orbit scan, batching, streaming, tangent
-maps and Lyapunov spectra work on any object with the methods of ``Scene``.
+compiles only the code it needs.
 
 The analyses ask through one small protocol per capability, never through
 the scene's type: ``HasSection`` (section coordinates, the area-preserving
@@ -24,12 +24,8 @@ import jax
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from jaxbill._engine.interface import NO_CONTACT, SEVERAL_CONTACTS, Scene
 from jaxbill._engine.validation import WALL_TOLERANCE, as_states
-
-# Contact codes shared by every scene (``Orbit.contact``). Scenes add their own
-# nonzero codes for which end touched which wall.
-NO_CONTACT = 0  # the flight never reaches a wall: dt = inf, state unchanged
-SEVERAL_CONTACTS = 2  # two or more contacts resolved in one event (a corner or kink)
 
 __all__ = [
     "NO_CONTACT",
@@ -40,6 +36,8 @@ __all__ = [
     "HasCheckerFlight",
     "CheckerFlight",
     "RigidBodyColumn",
+    "StickColumn",
+    "ReducedWalls",
     "HasPeriodicSymmetry",
     "HasAngularMomentum",
     "has_angular_momentum",
@@ -47,114 +45,6 @@ __all__ = [
     "SamplesStates",
     "SectionChart",
 ]
-
-
-class Scene(Protocol):
-    """The interface of a scene (a structural type: scenes do not inherit from it).
-
-    Optional, outside the protocol: ``contact_codes``, every contact code the
-    scene's collisions can have (``NO_CONTACT`` included). ``jb.run`` counts
-    those one by one and any other code in its last bin
-    (``jaxbill._engine.chunks.tallied_codes``); without it, all of ``-4..4``,
-    which costs the closed forms' batches up to a fifth of their speed. And
-    ``checks_curvature`` (static, default ``False``): the scene checks the
-    bounds of its root search along the way and refuses a step that breaks
-    them by a NaN gap with a finite slope, which an orbit's result then
-    reports as ``BOUND_VIOLATED`` (``jaxbill._engine.first_root.REFUSED``).
-    """
-
-    state_size: ClassVar[int]  # length of the state vector
-    state_layout: ClassVar[str]  # e.g. "[x, y, alpha, vx, vy, omega]", for messages
-    gap_names: ClassVar[tuple[str, ...]]  # one name per contact gap, for messages
-    wall_name: ClassVar[str]  # "the circle", "the walls"
-
-    @property
-    def batch_chunk(self) -> int:
-        """Orbits per vectorised lane of a batch on a CPU; 1: one orbit after another (no ``vmap``).
-
-        A vmapped root search waits for its slowest lane, a narrow lane leaves
-        the vector units idle: the best width is measured per scene
-        (``benchmarks/bench_drivers.py``; ``jaxbill._engine.drivers.choose_driver``).
-        """
-        ...
-
-    @property
-    def gap_scale(self) -> jax.Array:
-        """The unit of the gaps, for ``WALL_TOLERANCE``."""
-        ...
-
-    def check(self) -> None:
-        """Raise ValueError for invalid concrete parameters."""
-        ...
-
-    def check_state_values(self, state) -> None:
-        """Scene-specific eager checks of a finite float64 numpy state ``(..., state_size)``."""
-        ...
-
-    def is_valid(self, state: jax.Array) -> jax.Array:
-        """Traceable: parameters and ``state`` are a valid start (for NaN poisoning).
-
-        The traceable twin of the eager checks: finite, motion representable,
-        no end through a wall by more than ``WALL_TOLERANCE``, none on a wall
-        (gap ``<= 0``) without moving away from it.
-        """
-        ...
-
-    def motion_is_representable(self, state: jax.Array) -> jax.Array:
-        """Traceable ``(...)``: the velocities' squares and the energy are ordinary float64 numbers."""
-        ...
-
-    def orbit_constants(self, state0: tuple) -> Any:
-        """Quantities fixed along an orbit from ``state0`` (its components; a pytree, or None)."""
-        ...
-
-    # How a collision is computed (see jaxbill._engine.step): a scene whose gaps are
-    # transcendental in time answers root_search and gaps_along_flight, one
-    # whose gaps are polynomials answers closed_form_contact; both collide_at.
-    # These take a state as its components (a tuple of S scalars, or of
-    # equal-shaped arrays, one element per orbit) and return tuples, so that
-    # they run inside a Pallas kernel too. Their arguments are positional
-    # (``/``): each scene names them for what they are to it.
-
-    @property
-    def searches_for_roots(self) -> bool:
-        """Static: the contact time needs the safe-step root search (else a closed form)."""
-        ...
-
-    def root_search(self, state: tuple, /) -> tuple[Any, Any]:
-        """``(profile, RootBounds)``: what the gaps depend on along the flight, and the search's bounds."""
-        ...
-
-    def gaps_along_flight(self, profile: Any, t: jax.Array, /) -> tuple:
-        """``(gaps, slopes)``, two K-tuples: the gaps and their time derivatives after a flight of ``t``;
-        or ``(gaps, slopes, curvatures)`` with their second derivatives too, when ``root_search``'s
-        ``RootBounds`` give ``jerk`` (a bound on the third): the search then takes sharper steps."""
-        ...
-
-    def closed_form_contact(self, state: tuple, constants: Any, /) -> tuple[jax.Array, jax.Array]:
-        """``(t, index)``: the contact time (``inf``: never) and which gap closes."""
-        ...
-
-    def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: Any, /) -> tuple[tuple, jax.Array]:
-        """``(state, contact)``: the flight to ``t`` and the impulse(s) of the contact in gap ``index``
-        (the new state as components)."""
-        ...
-
-    def gaps(self, state: jax.Array) -> jax.Array:
-        """Contact gaps ``(..., K)``, >= 0 inside."""
-        ...
-
-    def approach_speeds(self, state: jax.Array) -> jax.Array:
-        """Rate at which each gap closes ``(..., K)``, > 0 when approaching its wall."""
-        ...
-
-    def energy(self, state: jax.Array) -> jax.Array:
-        """Kinetic energy ``(...)``."""
-        ...
-
-    def end_points(self, state: jax.Array, /) -> jax.Array:
-        """Positions of the ends ``[P1, P2]``, shape ``(..., 2, D)`` (``D`` = 2 or 3)."""
-        ...
 
 
 # ---------------------------------------------------------------------------
@@ -252,10 +142,9 @@ class CheckerFlight(Protocol):
     ``check`` integrates ``n`` collisions from ``state0`` with diffrax (never
     with jaxbill's collision times or impulse law) and compares them with
     ``jb.orbit``; the options are those of ``jb.check``, each checker taking
-    the ones it knows (see ``jaxbill._check.checker.ColumnFlight``, the straight
-    flight of a point in ``(x, y, sqrt(I/M) alpha)`` inside the column the
-    gaps bound, and ``jaxbill._check.walls.ReducedWallsFlight``, the curved
-    flight of the reduced wall billiard).
+    the ones it knows. The library's scenes hand the checker a geometry instead
+    (``RigidBodyColumn``, ``StickColumn``, ``ReducedWalls``) and it builds the
+    flight itself.
     """
 
     def check(self, scene: Any, state0: np.ndarray, n: int, **options) -> Any:
@@ -297,12 +186,43 @@ class RigidBodyColumn:
     extent: tuple[float, float, float, float]
 
 
+@dataclasses.dataclass(frozen=True)
+class StickColumn:
+    """The column a stick's point ``(x, y, z = scale alpha)`` flies straight in, its walls the scene's own gaps
+    (``StickInCircle``, ``StickInEllipse``): ``jb.check`` reflects the point about their gradients and bounds
+    their curvature from ``hessian_bound`` (``jaxbill._check.checker.ColumnFlight``).
+
+    Attributes:
+        scale: ``sqrt(I/M)`` for a turning stick, 1 otherwise (length).
+        length: the unit of length of the comparison (``R``; ``max(a, b)``).
+        reach: a bound on ``|c|``, the centre's distance from the origin, inside the table.
+        hessian_bound: ``d_max``: the gaps' Hessian in the contact point is ``-2 D`` with ``|D| <= d_max``.
+        frozen: the stick never turns (infinite inertia).
+        single_sheet: both ends are one point (``ell = 0``): no crease, no corner.
+    """
+
+    scale: Any
+    length: Any
+    reach: Any
+    hessian_bound: Any
+    frozen: bool
+    single_sheet: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class ReducedWalls:
+    """The sticks between two flat walls: ``jb.check`` integrates their reduced ``(z, psi)`` billiard with its
+    centrifugal potential (``jaxbill._check.walls``). ``planar``: the 2D scene, else the 3D one."""
+
+    planar: bool
+
+
 class HasCheckerFlight(Protocol):
     """A scene that ``jb.check`` can verify: it says what flight the checker integrates."""
 
-    def checker_flight(self) -> CheckerFlight | RigidBodyColumn:
-        """The ``CheckerFlight`` of this (unbatched, concrete) scene, or the ``RigidBodyColumn`` the checker
-        builds its flight from."""
+    def checker_flight(self) -> CheckerFlight | RigidBodyColumn | StickColumn | ReducedWalls:
+        """The ``CheckerFlight`` of this (unbatched, concrete) scene, or the geometry (``RigidBodyColumn``,
+        ``StickColumn``, ``ReducedWalls``) the checker builds its flight from."""
         ...
 
 

@@ -4,7 +4,7 @@ The setting. In the circle of radius ``R`` the total
 angular momentum ``L`` is conserved and the motion of a stick with
 ``I = M ell^2`` at ``ell = 1.9``, ``R = 2`` is mostly regular: at fixed energy
 ``E`` the collision map lives on a four-dimensional section ``(s, p, alpha, L)``
-(``s, p`` the reduced section, ``jb.reduced_section``; ``alpha`` the cyclic
+(``s, p`` the reduced section, ``reduced_section``; ``alpha`` the cyclic
 rotation angle, here the stick angle), ``L`` is a constant and a regular orbit
 lies on a 2-torus of the map with two frequencies per collision:
 
@@ -35,7 +35,7 @@ the polar angle ``Phi = 0``, on the major axis, where the ellipse lies outside
 the circle: the same states are valid starts for every ``eps >= 0``.
 
 Functions here are numpy / ``jax.numpy`` on top of the public ``jaxbill`` API
-(``import jaxbill as jb``): they ask nothing of the private modules.
+(the modules behind ``jaxbill``'s names, imported directly, never the package itself).
 """
 
 from __future__ import annotations
@@ -48,8 +48,11 @@ import numpy as np
 from jax.typing import ArrayLike
 from jaxtyping import Float
 
-import jaxbill as jb
-from jaxbill._scenes.protocols import Scene
+from jaxbill._engine.collision import orbit
+from jaxbill._scenes.circle.scene import StickInCircle
+from jaxbill._scenes.circle.sections import reduced_section, section_state, wall_length
+from jaxbill._scenes.ellipse.scene import StickInEllipse
+from jaxbill._scenes.protocols import Scene, angular_momentum
 
 __all__ = [
     "ellipse_scene",
@@ -93,24 +96,24 @@ def ellipse_scene(R: float, ell: float, eps: float, mass: float = 1.0, inertia: 
     Args:
         R: mean radius (length). ell: half-length of the stick (length).
         eps: eccentricity parameter, ``0 <= eps < 1`` (dimensionless).
-        mass, inertia: as ``jb.StickInEllipse`` (``inertia=None``: ``mass * ell**2``).
+        mass, inertia: as ``StickInEllipse`` (``inertia=None``: ``mass * ell**2``).
 
     Returns:
-        ``jb.StickInEllipse``. At ``eps = 0`` it is the circle, computed by the
-        ellipse's code (its orbits agree with ``jb.StickInCircle``'s to rounding,
+        ``StickInEllipse``. At ``eps = 0`` it is the circle, computed by the
+        ellipse's code (its orbits agree with ``StickInCircle``'s to rounding,
         and ``L`` is conserved to rounding).
     """
-    return jb.StickInEllipse(a=R * (1.0 + eps), b=R * (1.0 - eps), ell=ell, mass=mass, inertia=inertia)
+    return StickInEllipse(a=R * (1.0 + eps), b=R * (1.0 - eps), ell=ell, mass=mass, inertia=inertia)
 
 
 def circle_scene(R: float, ell: float, mass: float = 1.0, inertia: float | None = None):
-    """``jb.StickInCircle`` with the same parameters: the scene whose reduced section labels the tori."""
-    return jb.StickInCircle(R=R, ell=ell, mass=mass, inertia=inertia)
+    """``StickInCircle`` with the same parameters: the scene whose reduced section labels the tori."""
+    return StickInCircle(R=R, ell=ell, mass=mass, inertia=inertia)
 
 
 def centre_line_s(circle) -> float:
     """``s0 = Lw / 4``: the middle of end P1's arc of the reduced section (``beta = 0``), length units."""
-    return float(jb.wall_length(circle)) / 4.0
+    return float(wall_length(circle)) / 4.0
 
 
 def web_starts(circle, p, L, energy: float):
@@ -126,7 +129,7 @@ def web_starts(circle, p, L, energy: float):
     (on the wall at ``eps = 0``) and moving inwards: a valid start for every ``eps``.
 
     Args:
-        circle: a ``jb.StickInCircle`` (finite inertia, ``ell > 0``).
+        circle: a ``StickInCircle`` (finite inertia, ``ell > 0``).
         p, L: arrays broadcast together: tangential momentum (units of
             ``sqrt(2 M E)``) and angular momentum (mass length^2 / time).
         energy: ``E``.
@@ -137,14 +140,14 @@ def web_starts(circle, p, L, energy: float):
     s0 = centre_line_s(circle)
     beta = s0 / float(circle.R) - math.acos(float(circle.ell) / float(circle.R))  # = 0 up to rounding
     p, L = np.broadcast_arrays(np.asarray(p, dtype=np.float64), np.asarray(L, dtype=np.float64))
-    return np.asarray(jb.section_state(circle, np.full(p.shape, s0), p, energy, L, rotation=-beta))
+    return np.asarray(section_state(circle, np.full(p.shape, s0), p, energy, L, rotation=-beta))
 
 
 def web_grid(circle, p, L, energy: float):
     """Starts over the plane (``p`` on the line ``s = Lw/4``) x ``L`` at energy ``E`` (``web_starts`` on a mesh).
 
     Args:
-        circle: a ``jb.StickInCircle`` (finite inertia, ``ell > 0``).
+        circle: a ``StickInCircle`` (finite inertia, ``ell > 0``).
         p: ``(nx,)`` tangential momenta (units of ``sqrt(2 M E)``).
         L: ``(ny,)`` angular momenta (mass length^2 / time).
         energy: ``E``.
@@ -196,18 +199,18 @@ def loop_angle(circle, states):
     (``ell = 0``) the angle is the contact's polar angle ``s / R``.
 
     Args:
-        circle: the ``jb.StickInCircle`` whose section labels the tori.
+        circle: the ``StickInCircle`` whose section labels the tori.
         states: ``(..., n, 6)`` states at ``n`` successive collisions of a
-            circle orbit (``jb.orbit(...).state``).
+            circle orbit (``orbit(...).state``).
 
     Returns:
         ``(..., n)`` angles in ``(-pi, pi]``.
     """
-    sp = np.asarray(jb.reduced_section(circle, states))
+    sp = np.asarray(reduced_section(circle, states))
     s, p = sp[..., 0], sp[..., 1]
     if float(circle.ell) == 0.0:
         return np.angle(np.exp(1j * s / float(circle.R)))
-    half = float(jb.wall_length(circle)) / 2.0
+    half = float(wall_length(circle)) / 2.0
     s = np.remainder(s, half)
     ds = s - s.mean(axis=-1, keepdims=True)
     dp = p - p.mean(axis=-1, keepdims=True)
@@ -237,9 +240,9 @@ def frequencies_from_orbit(circle, state0, states) -> TorusFrequencies:
     """``nu1``, ``nu2`` of circle orbits from their collisions (weighted Birkhoff averages).
 
     Args:
-        circle: the ``jb.StickInCircle`` of the orbits.
+        circle: the ``StickInCircle`` of the orbits.
         state0: ``(..., 6)`` the starts (a collision state, e.g. from ``web_grid``).
-        states: ``(..., n, 6)`` the next ``n`` collisions (``jb.orbit(circle, state0, n).state``),
+        states: ``(..., n, 6)`` the next ``n`` collisions (``orbit(circle, state0, n).state``),
             (the engine wraps the stick angle into ``(-pi, pi]``; each
             collision's turn is taken in ``(-pi, pi]``, so it must be smaller
             than half a turn).
@@ -272,17 +275,17 @@ def torus_frequencies(
 ) -> TorusFrequencies:
     """``nu1``, ``nu2`` per collision of the circle orbits from ``states0`` (see the module docstring).
 
-    Runs ``n`` collisions of each orbit (``jb.orbit``, in batches of ``batch``
+    Runs ``n`` collisions of each orbit (``orbit``, in batches of ``batch``
     orbits so that memory stays at ``batch * n * 48`` bytes) and applies
     ``frequencies_from_orbit``. NaN starts give NaN.
 
     Args:
-        circle: a ``jb.StickInCircle`` (or the ``eps = 0`` ellipse for ``nu2``;
+        circle: a ``StickInCircle`` (or the ``eps = 0`` ellipse for ``nu2``;
             ``nu1`` needs the circle's reduced section, so pass the circle).
         states0: ``(..., 6)`` starts at collisions (``web_grid``).
         n: collisions per orbit (the estimates on a torus converge fast with
             ``n``: see ``weighted_birkhoff_mean``).
-        batch: orbits per call of ``jb.orbit``.
+        batch: orbits per call of ``orbit``.
 
     Returns:
         ``TorusFrequencies`` of shape ``states0.shape[:-1]``.
@@ -295,7 +298,7 @@ def torus_frequencies(
     idx = np.flatnonzero(ok)
     for i in range(0, idx.size, batch):
         sel = idx[i : i + batch]
-        orb = jb.orbit(circle, flat[sel], n)
+        orb = orbit(circle, flat[sel], n)
         f = frequencies_from_orbit(circle, flat[sel], np.asarray(orb.state))
         out[:, sel] = f.nu1, f.nu2, f.spread
     return TorusFrequencies(*(o.reshape(shape) for o in out))
@@ -524,7 +527,7 @@ def spread_against_time(t, L, L0, times, n_sub: int = 8):
     notes), not at a common collision count.
 
     Args:
-        t: ``(B, K)`` record times (``jb.run(..., record="states", every=...).t``).
+        t: ``(B, K)`` record times (``run(..., record="states", every=...).t``).
         L: ``(B, K)`` angular momentum after those collisions.
         L0: ``(B,)`` the starts' angular momenta.
         times: ``(T,)`` common times (within every orbit's run).
@@ -573,7 +576,7 @@ def torus_label_path(circle, states, window: int, s_tol: float = 0.03):
     its centre, the map's ``x`` coordinate. ``L`` is the window's mean.
 
     Args:
-        circle: the ``jb.StickInCircle`` whose section labels the tori.
+        circle: the ``StickInCircle`` whose section labels the tori.
         states: ``(n, 6)`` collisions of one orbit (e.g. in an ellipse).
         window: collisions per window (a few loop periods, ``>~ 20 / min(nu1, 1 - nu1)``).
         s_tol: half-width of the strip round the line.
@@ -583,13 +586,13 @@ def torus_label_path(circle, states, window: int, s_tol: float = 0.03):
     """
     states = np.asarray(states)
     n = (states.shape[0] // window) * window
-    sp = np.asarray(jb.reduced_section(circle, states[:n]))
-    half = float(jb.wall_length(circle)) / 2.0
+    sp = np.asarray(reduced_section(circle, states[:n]))
+    half = float(wall_length(circle)) / 2.0
     s = np.remainder(sp[:, 0], half)
     near = np.abs(s - centre_line_s(circle)) < s_tol
     p = np.where(near, sp[:, 1], -np.inf).reshape(-1, window).max(axis=1)
     p[~np.isfinite(p)] = np.nan
-    L = np.asarray(jb.angular_momentum(circle, states[:n])).reshape(-1, window).mean(axis=1)
+    L = np.asarray(angular_momentum(circle, states[:n])).reshape(-1, window).mean(axis=1)
     return p, L
 
 

@@ -88,7 +88,11 @@ import numpy as np
 from jax.typing import ArrayLike
 from jaxtyping import Float
 
-import jaxbill as jb
+from jaxbill._analysis.chaos import sample_energy_shell
+from jaxbill._engine.collision import collide
+from jaxbill._engine.tangent import dynamical_indices, phase_velocity
+from jaxbill._scenes.circle.scene import StickInCircle
+from jaxbill._scenes.ellipse.scene import StickInEllipse
 
 __all__ = [
     "EnsembleLyapunov",
@@ -189,8 +193,8 @@ def _advance(scene, carry, checkpoints, horizon, long_flight, n):
     def one(c):
         def body(c, _):
             state, w, t, logw, k, visits, done, cp_log, cp_k, cp_v = c
-            (new, dt, _), (dnew, ddt, _) = jax.jvp(lambda s: jb.collide(scene, s), (state,), (w,))
-            dw = dnew - jb.phase_velocity(scene, new) * ddt
+            (new, dt, _), (dnew, ddt, _) = jax.jvp(lambda s: collide(scene, s), (state,), (w,))
+            dw = dnew - phase_velocity(scene, new) * ddt
             norm = jnp.linalg.norm(metric * dw)
             t_new = t + dt
             ok = (t_new <= horizon) & ~done
@@ -232,7 +236,7 @@ def _window_estimates(log_stretch, collisions, weights, j0, t0, t1):
 
 
 def ensemble_lyapunov(
-    scene: jb.StickInCircle | jb.StickInEllipse,
+    scene: StickInCircle | StickInEllipse,
     states: Float[ArrayLike, "B 6"],
     T: float,
     *,
@@ -249,16 +253,16 @@ def ensemble_lyapunov(
     Every orbit runs until its next collision would fall after ``T``; the
     tangent vector (start: random, in the dynamical directions, seeded) is
     pushed by the flow's tangent map at each collision (a JVP of
-    ``jb.collide`` minus the flow direction times the collision-time change)
+    ``collide`` minus the flow direction times the collision-time change)
     and renormalised in the mass-weighted norm
     ``|(sqrt(M) dx, sqrt(M) dy, sqrt(I) dalpha, sqrt(M) dvx, sqrt(M) dvy, sqrt(I) domega)|``.
     Orbits still running are re-batched to fewer lanes as others finish.
     See the module docstring for the estimators.
 
     Args:
-        scene: a ``jb.StickInCircle`` or ``jb.StickInEllipse`` (state ``[x, y, alpha, vx, vy, omega]``).
+        scene: a ``StickInCircle`` or ``StickInEllipse`` (state ``[x, y, alpha, vx, vy, omega]``).
         states: ``(B, 6)`` starts, from an invariant measure (e.g.
-            ``jb.sample_energy_shell``); ``B`` a multiple of ``n_sub``.
+            ``sample_energy_shell``); ``B`` a multiple of ``n_sub``.
         T: the window's end (time units); the same for every orbit.
         weights: ``(B,)`` the starts' weights (``sample_energy_shell``'s second
             output); default all 1.
@@ -292,7 +296,7 @@ def ensemble_lyapunov(
     started = _time.perf_counter()
 
     dyn = np.zeros(6)
-    dyn[list(jb.dynamical_indices(scene))] = 1.0
+    dyn[list(dynamical_indices(scene))] = 1.0
     w0 = np.random.default_rng(seed).normal(size=(B, 6)) * dyn
     w0 /= np.linalg.norm(w0 * np.asarray(_metric(scene)), axis=1, keepdims=True)
     J = int(n_checkpoints)
@@ -632,8 +636,8 @@ def study_scene(name: str, ell: float, scaling: str, mass: float = 1.0):
     inertia = 1.0 if scaling == "fixed_I" else mass * ell**2
     a, b = SCENES[name]["a"], SCENES[name]["b"]
     if a == b:
-        return jb.StickInCircle(R=a, ell=ell, mass=mass, inertia=inertia)
-    return jb.StickInEllipse(a=a, b=b, ell=ell, mass=mass, inertia=inertia)
+        return StickInCircle(R=a, ell=ell, mass=mass, inertia=inertia)
+    return StickInEllipse(a=a, b=b, ell=ell, mass=mass, inertia=inertia)
 
 
 def _window(name: str, ell: float, scaling: str, growth: float, min_collisions: float) -> float:
@@ -662,7 +666,7 @@ def measure_small_stick_law(
 ) -> dict:
     """Measure ``lambda(ell)`` for each scene and scaling; returns arrays ready for ``np.savez``.
 
-    Each point: ``n_orbits`` starts from ``jb.sample_energy_shell`` (Liouville
+    Each point: ``n_orbits`` starts from ``sample_energy_shell`` (Liouville
     on the shell ``E = energy``; energy only, weights 1), a window ``T`` from
     ``_window`` (about ``growth`` e-foldings by the predictions, at least
     ``min_collisions`` collisions per orbit on average), ``ensemble_lyapunov``
@@ -681,7 +685,7 @@ def measure_small_stick_law(
             rows, per_orbit, predicted, regular = [], [], [], []
             for k, ell in enumerate(ells):
                 scene = study_scene(name, ell, scaling)
-                states, weights = jb.sample_energy_shell(scene, n_orbits, energy=energy, seed=seed + 1000 * k)
+                states, weights = sample_energy_shell(scene, n_orbits, energy=energy, seed=seed + 1000 * k)
                 T = _window(name, ell, scaling, growth, min_collisions)
                 r = ensemble_lyapunov(scene, states, T, weights=weights, n_sub=n_sub, seed=seed + k)
                 j0 = int(math.floor(0.5 * r.log_stretch.shape[1])) - 1
@@ -727,7 +731,7 @@ def predicted_coefficients(*, n_samples: int = 20000, energy: float = 0.5, seed:
     for name, g in SCENES.items():
         t, c = predicted_small_stick_exponent(g["a"], g["b"], 1.0, energy=energy)
         out[f"{name}/frozen/per_time"], out[f"{name}/frozen/per_collision"] = float(t), float(c)
-    states, _ = jb.sample_energy_shell(study_scene("circle", 1e-3, "fixed_I"), n_samples, energy=energy, seed=seed)
+    states, _ = sample_energy_shell(study_scene("circle", 1e-3, "fixed_I"), n_samples, energy=energy, seed=seed)
     t, c, _, regular = circle_reduced_exponents(states, 1.0, R=SCENES["circle"]["a"])
     out["circle/twist/per_time"], out["circle/twist/per_collision"] = t, c
     out["circle/twist/regular_fraction"] = float(regular.mean())

@@ -20,7 +20,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from jaxbill._check.checker import ColumnFlight
 from jaxbill._engine.step import cos_sin
 from jaxbill._engine.validation import (
     broadcast_parameters,
@@ -41,7 +40,7 @@ from jaxbill._scenes.circle.sections import (
     reduced_section,
     section_state,
 )
-from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, chosen_section
+from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, StickColumn, chosen_section
 from jaxbill._scenes.shell_sampling import circle_shell_candidates
 from jaxbill._scenes.tables.circle import Circle
 
@@ -247,12 +246,11 @@ class StickInCircle(BodyInTable):
         """The explorer's chart of the reduced section."""
         return CIRCLE_CHART
 
-    def checker_flight(self) -> ColumnFlight:
+    def checker_flight(self) -> StickColumn:
         """The spiral column ``r <= b(theta - alpha)`` in ``(x, y, sqrt(I/M) alpha)`` (``HasCheckerFlight``)."""
         turning = self.kind == "rotor"
         scale = jnp.sqrt(self.inertia / self.mass) if turning else jnp.ones_like(self.R)
-        return ColumnFlight(
-            scene=self,
+        return StickColumn(
             scale=scale,
             length=self.R,
             reach=jnp.sqrt(self.R**2 - self.ell**2),

@@ -358,7 +358,7 @@ def incoming_states(
     return jnp.concatenate([states[..., :3], previous[..., 3:]], axis=-1)
 
 
-def _halton(index: np.ndarray, base: int) -> np.ndarray:
+def halton(index: np.ndarray, base: int) -> np.ndarray:
     """Radical inverse of ``index`` in ``base``: a low-discrepancy sequence in ``[0, 1)``."""
     index = np.asarray(index, dtype=np.int64).copy()
     out = np.zeros(index.shape, dtype=np.float64)
@@ -396,8 +396,8 @@ def section_seeds(
     while len(chosen_s) < count:
         index = np.arange(start, start + 4 * count + 16)
         start = index[-1] + 1
-        s = _halton(index, 2) * length
-        p = 2.0 * _halton(index, 3) - 1.0
+        s = halton(index, 2) * length
+        p = 2.0 * halton(index, 3) - 1.0
         bounds = np.asarray(reduced_section_bounds(scene, s, energy, angular_momentum))
         keep = (p > bounds[:, 0]) & (p < bounds[:, 1]) & (s > 1e-6 * length)
         chosen_s.extend(s[keep].tolist())

@@ -53,7 +53,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from jaxbill._check.checker import ColumnFlight
 from jaxbill._engine.step import components, cos_sin, searched_contact_time, stacked
 from jaxbill._engine.validation import (
     broadcast_parameters,
@@ -73,7 +72,7 @@ from jaxbill._scenes.ellipse.sections import (
     ellipse_section,
     ellipse_section_state,
 )
-from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, chosen_section
+from jaxbill._scenes.protocols import NO_CONTACT, SEVERAL_CONTACTS, SectionChart, StickColumn, chosen_section
 from jaxbill._scenes.shell_sampling import table_shell_candidates
 from jaxbill._scenes.tables.ellipse import Ellipse
 
@@ -325,7 +324,7 @@ class StickInEllipse(BodyInTable):
         """The explorer's chart of the Birkhoff section (P1 on the wall, stick along the normal, no spin)."""
         return ELLIPSE_CHART
 
-    def checker_flight(self) -> ColumnFlight:
+    def checker_flight(self) -> StickColumn:
         """The column ``g_k(x, y, z / sqrt(I/M)) >= 0`` in ``(x, y, z = sqrt(I/M) alpha)`` (``HasCheckerFlight``).
 
         The gaps' Hessian in the contact point is ``-2 D``, ``|D| = max(a, b) / min(a, b)``; the centre
@@ -334,8 +333,7 @@ class StickInEllipse(BodyInTable):
         turning = self.kind == "rotor"
         scale = jnp.sqrt(self.inertia / self.mass) if turning else jnp.ones_like(self.a)
         major, minor = jnp.maximum(self.a, self.b), jnp.minimum(self.a, self.b)
-        return ColumnFlight(
-            scene=self,
+        return StickColumn(
             scale=scale,
             length=major,
             reach=major,

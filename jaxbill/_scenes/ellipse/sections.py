@@ -43,7 +43,7 @@ import numpy as np
 from jaxtyping import ArrayLike
 
 from jaxbill._engine.validation import as_states
-from jaxbill._scenes.circle.sections import _halton
+from jaxbill._scenes.circle.sections import halton
 from jaxbill._scenes.protocols import SectionChart, end_points
 
 # Gauss-Legendre nodes and weights on [-1, 1] for the arc length quadrature.
@@ -184,8 +184,8 @@ def ellipse_section_state(scene, s, p, energy=0.5, arm_angle=0.0, spin=0.0) -> j
 def ellipse_section_seeds(scene, count: int, energy=0.5, arm_angle=0.0, spin=0.0):
     """``count`` states spread evenly (Halton) over the Birkhoff section ``[0, L) x (-1, 1)``; some NaN for a stick."""
     index = np.arange(1, count + 1)
-    s = _halton(index, 2) * float(ellipse_length(scene))
-    p = 2.0 * _halton(index, 3) - 1.0
+    s = halton(index, 2) * float(ellipse_length(scene))
+    p = 2.0 * halton(index, 3) - 1.0
     return ellipse_section_state(scene, s, p, energy, arm_angle, spin)
 
 

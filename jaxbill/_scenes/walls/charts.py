@@ -49,14 +49,47 @@ def _walls_edge(scene, theta, invariants):
     return np.stack([-bound, bound], axis=-1)
 
 
+def draw_wall_billiard(
+    ax,
+    scene,
+    theta_range=(0.0, np.pi),
+    *,
+    color="k",
+    shade: bool = True,
+):
+    """The paper's billiard: floor ``kappa b(theta) = ell|cos theta|`` and ceiling ``h - ell|cos theta|``.
+
+    Drawn in lengths against ``kappa theta`` (aspect equal, so reflections look
+    specular); where the two walls cross (``2 ell |cos theta| > h``: the
+    stick does not fit) the strip is shaded.
+    """
+    h, ell = float(scene.h), float(scene.ell)
+    kappa = float(np.sqrt(float(scene.inertia) / float(scene.mass)))
+    theta = np.linspace(theta_range[0], theta_range[1], 1200)
+    floor = ell * np.abs(np.cos(theta))
+    ceiling = h - floor
+    ax.plot(kappa * theta, floor, color=color, lw=1.2)
+    ax.plot(kappa * theta, ceiling, color=color, lw=1.2)
+    if shade:
+        ax.fill_between(kappa * theta, floor, -0.05 * h, color="0.85", lw=0)
+        ax.fill_between(kappa * theta, ceiling, 1.05 * h, color="0.85", lw=0)
+        blocked = floor > ceiling
+        if blocked.any():
+            ax.fill_between(kappa * theta, -0.05 * h, 1.05 * h, where=blocked, color="0.7", lw=0)
+    ax.set_xlim(kappa * theta_range[0], kappa * theta_range[1])
+    ax.set_ylim(-0.05 * h, 1.05 * h)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"$\kappa\,\theta$ (length; $\kappa = \sqrt{I/M}$)")
+    ax.set_ylabel("z (length)")
+    return ax
+
+
 def _draw_walls_configuration(ax, scene, state0, orb, color):
     """The reduced billiard ``(kappa theta, z)`` with the stick drawn at its contacts, centred at ``(kappa theta, z)``.
 
     ``theta`` (the 2D angle, or the 3D polar angle) is taken mod ``pi``, the
     period of the walls, so the whole orbit stays in one cell.
     """
-    from jaxbill.plotting import draw_wall_billiard
-
     kappa = float(gyration_radius(scene))
     ell = float(scene.ell)
     draw_wall_billiard(ax, scene, (0.0, np.pi))

@@ -63,7 +63,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxbill._engine.collision import _collide
+from jaxbill._engine.collision import collide_unchecked
 from jaxbill._scenes.walls import engine as walls
 
 if TYPE_CHECKING:  # the scenes import the engine this module is part of
@@ -210,7 +210,7 @@ class WallsProblem(eqx.Module):
         """``(s0, states, contacts, flights)`` of ``p`` collisions from the section point ``xi``."""
 
         def step(state, _):
-            new_state, dt, contact = _collide(self.scene, state)
+            new_state, dt, contact = collide_unchecked(self.scene, state)
             return new_state, (new_state, contact, dt)
 
         s0 = self.section_state(xi)
@@ -252,7 +252,7 @@ class WallsProblem(eqx.Module):
 
 def make_problem(scene, guess, p, energy, angular_momentum, rotation, pin_l, pin_rotation):
     """The problem around the guess's first collision, and that collision's contact code."""
-    start, _, contact = _collide(scene, guess)
+    start, _, contact = collide_unchecked(scene, guess)
     start = jax.lax.stop_gradient(start)
     gap = gap_of_contact(contact)
     if is_3d(scene):

@@ -25,12 +25,11 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import ArrayLike
 
-from jaxbill._check.walls import ReducedWallsFlight
 from jaxbill._engine.step import cos_sin
 from jaxbill._engine.validation import require_x64
 from jaxbill._scenes.bodies.dumbbell import Dumbbell
 from jaxbill._scenes.body_in_table import BodyInTable
-from jaxbill._scenes.protocols import SectionChart, chosen_section
+from jaxbill._scenes.protocols import ReducedWalls, SectionChart, chosen_section
 from jaxbill._scenes.tables.flat import Strip
 from jaxbill._scenes.walls import engine as walls
 from jaxbill._scenes.walls.charts import WALLS_2D_CHART
@@ -173,8 +172,8 @@ class StickBetweenWalls2D(BodyInTable):
         """The explorer's chart of the floor section."""
         return WALLS_2D_CHART
 
-    def checker_flight(self) -> ReducedWallsFlight:
+    def checker_flight(self) -> ReducedWalls:
         """The reduced ``(z, psi)`` flight of ``jaxbill._check.walls`` (``HasCheckerFlight``)."""
-        return ReducedWallsFlight(planar=True)
+        return ReducedWalls(planar=True)
 
     # == end of analysis block ============================================================

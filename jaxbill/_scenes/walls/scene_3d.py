@@ -32,10 +32,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from jaxbill._check.walls import ReducedWallsFlight
 from jaxbill._engine.step import components, stacked
 from jaxbill._engine.validation import require_x64
-from jaxbill._scenes.protocols import SectionChart, chosen_section, component
+from jaxbill._scenes.protocols import ReducedWalls, SectionChart, chosen_section, component
 from jaxbill._scenes.walls import engine as walls
 from jaxbill._scenes.walls.charts import WALLS_3D_CHART
 from jaxbill._scenes.walls.sections import floor_state, reduced_wall_section
@@ -313,8 +312,8 @@ class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
         """The explorer's chart of the reduced floor section."""
         return WALLS_3D_CHART
 
-    def checker_flight(self) -> ReducedWallsFlight:
+    def checker_flight(self) -> ReducedWalls:
         """The reduced ``(z, psi)`` flight of ``jaxbill._check.walls`` (``HasCheckerFlight``)."""
-        return ReducedWallsFlight(planar=False)
+        return ReducedWalls(planar=False)
 
     # == end of analysis block ============================================================

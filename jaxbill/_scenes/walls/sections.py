@@ -100,7 +100,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._engine.step import cos_sin
 from jaxbill._engine.validation import MAX_STORED_COUNT, as_states, check_count, require_x64
-from jaxbill._scenes.circle.sections import _halton
+from jaxbill._scenes.circle.sections import halton
 
 # Floor gaps below this many units of h count as "on the floor" in a contact 2.
 _ON_WALL = 1e-9
@@ -146,7 +146,7 @@ def internal_energy(scene, states: jax.Array) -> jax.Array:
     return 0.5 * scene.mass * states[..., 4] ** 2 + 0.5 * scene.inertia * states[..., 5] ** 2
 
 
-def _internal_energy_np(scene, states) -> np.ndarray:
+def internal_energy_np(scene, states) -> np.ndarray:
     """``internal_energy`` in NumPy, for finished results (no JAX dispatch or compilation)."""
     states = np.asarray(states, dtype=np.float64)
     mass, inertia = float(np.asarray(scene.mass)), float(np.asarray(scene.inertia))
@@ -367,8 +367,8 @@ def floor_seed_points(scene, count: int, energy=0.5, spin=0.0, *, offset: int = 
     while len(chosen_theta) < count:
         index = np.arange(start, start + 4 * count + 16)
         start = int(index[-1]) + 1
-        theta = _halton(index, 2) * np.pi
-        p = (2.0 * _halton(index, 3) - 1.0) * top
+        theta = halton(index, 2) * np.pi
+        p = (2.0 * halton(index, 3) - 1.0) * top
         bound = np.asarray(floor_section_bound(scene, theta, energy, spin))
         keep = np.isfinite(bound) & (np.abs(p) < bound) & (np.abs(theta - 0.5 * np.pi) > 1e-9)
         chosen_theta.extend(theta[keep].tolist())
@@ -493,7 +493,7 @@ def wall_twin_distances(scene, states, twin_states, states0) -> np.ndarray:
     states0 = np.atleast_2d(np.asarray(states0, dtype=np.float64))
     h = float(np.max(np.asarray(scene.h)))
     kappa = float(np.asarray(gyration_radius(scene)))
-    speed = np.sqrt(2.0 * _internal_energy_np(scene, states0) / float(np.asarray(scene.inertia)))[:, None]
+    speed = np.sqrt(2.0 * internal_energy_np(scene, states0) / float(np.asarray(scene.inertia)))[:, None]
     if _is_3d(scene):
         parts = [
             (first[..., 2] - second[..., 2]) / h,
