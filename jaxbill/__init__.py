@@ -5,8 +5,9 @@ time and state is computed in double precision, and the library's accuracy
 claims hold only there. It also asks XLA:CPU, before JAX's backend starts and
 never over a choice the user made, to show one CPU device per core (so that a
 batch uses every core) and, on x86-64, to compile each loop whole without fused
-multiply-adds (one orbit runs 10-20x faster, and every program still rounds
-alike, so results stay bitwise reproducible). ``jaxbill._engine.backend`` says
+multiply-adds (one orbit's loop then runs as one native function rather than
+a call per kernel at every collision, and every program still rounds alike, so
+results stay bitwise reproducible). ``jaxbill._engine.backend`` says
 why and how; ``jb.backend_settings()`` says what was set;
 ``JAXBILL_NO_XLA_SETTINGS=1`` sets nothing.
 """

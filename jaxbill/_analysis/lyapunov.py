@@ -95,7 +95,8 @@ def _orthonormalised(frame: jax.Array) -> tuple[jax.Array, jax.Array]:
 
     Written out, not ``jnp.linalg.qr``: a factorisation this small is a few
     hundred flops, where LAPACK's call per orbit and collision cost more than
-    the collision (the spectrum of a spinning stick 2.5x faster).
+    the collision (the spinning stick's spectrum, measured both ways:
+    ``benchmarks/HISTORY.md``).
     """
     basis: list[jax.Array] = []
     norms = []
@@ -115,9 +116,9 @@ def _descending(values: jax.Array) -> jax.Array:
 
     By compare-and-swap rounds (odd-even transposition, ``K`` rounds sort ``K``
     values; ties keep their order, as in ``jnp.sort``): elementwise work that
-    XLA vectorises over the batch, where its sort op ran 50x slower on the
-    history of a batch, ``(B, H, K)``, and took a fifth of a static lens's
-    spectrum over 400 collisions with 100 checkpoints.
+    XLA vectorises over the batch, where XLA:CPU's sort op, on the history of a
+    batch, ``(B, H, K)``, was a large part of a static lens's spectrum over
+    400 collisions with 100 checkpoints (``benchmarks/HISTORY.md``).
     """
     rows = [values[..., i] for i in range(values.shape[-1])]
     for first in [i % 2 for i in range(len(rows))]:

@@ -11,7 +11,8 @@
    iteration. An orbit's loop carries its records, so every collision paid
    about forty calls: raising the byte threshold
    (``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=...``)
-   makes one orbit 10-20x faster (``benchmarks/bench_vs_numba.py``). Whole
+   makes one orbit's loop one native function, many times faster (single
+   orbits are timed by ``benchmarks/bench_vs_numba.py``). Whole
    loops alone would cost bitwise reproducibility: LLVM optimises each loop
    in its own context and contracts multiply-adds into FMAs differently in
    different programs, so ``jb.run`` and ``jb.orbit`` of one orbit, or a
@@ -19,9 +20,10 @@
    also caps the instruction set at AVX (``--xla_cpu_max_isa=AVX``), which
    has no FMA: every program then rounds every operation the same way, and
    float64 vector width is unchanged. The cost: LLVM then evaluates a
-   float64 ``sqrt`` lane by lane in a vectorised loop (2.5 ns a lane against
-   0.64 ns with AVX2: a spinning stick's lockstep batch ran 1.3x faster at
-   AVX-512, with FMAs), and JAX code of your own in the same process runs
+   float64 ``sqrt`` lane by lane in a vectorised loop, where at AVX2 it takes
+   the lanes together (a spinning stick's lockstep batch, three square roots a
+   root step, ran faster at AVX-512 with FMAs; ``benchmarks/HISTORY.md`` has
+   the measurement), and JAX code of your own in the same process runs
    without FMA and AVX2 too (float32 matrix products slow down most). No
    XLA option turns FMA contraction off at AVX2 (``docs/performance.md``).
    Other CPUs (ARM) have no FMA-free level to cap at, so there jaxbill sets

@@ -151,8 +151,8 @@ class Batch:
         if not self.batched:
             return Carry(*(jnp.asarray(a) for a in host_fresh_carry(self.state0)))
         assert self.mesh is not None  # set up for a batch
-        # The start is already on the devices, and zeros are made there:
-        # sending 0.5 MB of them from the host cost 0.2 ms of every call.
+        # The start is already on the devices, and zeros are made there: sending
+        # them from the host was a measurable part of every call (``benchmarks/HISTORY.md``).
         return Carry(self.device_state0, *_zero_statistics(self.lanes, self.mesh)())
 
     def carry_of(self, held: Carry) -> Carry:
@@ -207,8 +207,10 @@ def map_over_orbits(scene, function: Callable[..., Any], in_axes: tuple) -> Call
     core), and each device runs its orbits in lanes of ``scene.batch_chunk``,
     vectorised (``step.vmapped_over_lanes``), one lane after another; a width
     of 1 runs them one after another, each its own loop (FTLE steps of a
-    spinning stick in lanes of 16: 2.6x one 1024-wide ``vmap``; of the walls
-    one by one: 1.4x lanes of 16). Elsewhere the whole batch is one ``vmap``.
+    spinning stick ran faster in lanes of 16 than in one 1024-wide ``vmap``,
+    those of the walls faster one by one than in lanes of 16: the widths that
+    ``benchmarks/bench_drivers.py`` measures best for plain collisions). Elsewhere
+    the whole batch is one ``vmap``.
     Arguments that are not mapped are closed over (static values may be among
     them).
     """

@@ -51,10 +51,10 @@ from jaxbill._engine.step import (
     without_conditionals,
 )
 
-# Orbits per kernel program. Measured by a prototype on an H100 (float64, the
-# spinning stick): 32 lanes on one warp were fastest; 64 on 2 warps reached
-# 0.97x that, 128 on 4 0.94x, 256 on 8 0.82x. A batch is padded to whole blocks
-# (``jaxbill._engine.drivers.lane_width``).
+# Orbits per kernel program: one orbit per thread, 32 lanes on one warp, is fastest in
+# float64; larger blocks on more warps are no faster, several orbits per thread slower
+# (``benchmarks/bench_gpu.py --variants``; the performance page, "On a GPU"). A batch is
+# padded to whole blocks (``jaxbill._engine.drivers.lane_width``).
 BLOCK = 32
 NUM_WARPS = 1
 # ``rarely``'s rare side (a corner) computed only in blocks where some lane needs it.

@@ -87,7 +87,7 @@ def without_conditionals(rare_by_block: bool = False):
 
     A Pallas kernel is one fusion already, and Triton lowers no conditional over
     a block of lanes; the XLA lane state machine measured slower with them
-    (``benchmarks/bench_drivers.py``: walls 0.5x), so only ``advance`` (single
+    (the walls' search most; ``benchmarks/bench_drivers.py`` times the drivers), so only ``advance`` (single
     orbits, lockstep batches, tangents) keeps them. ``rare_by_block``: inside a
     kernel, ``rarely`` computes its rare side only when some lane of the block
     needs it (one branch on a scalar, which Triton lowers).
@@ -111,7 +111,7 @@ def cos_sin(phi):
     XLA:CPU copies an elementwise producer into every fusion that consumes it,
     and a root step's gaps and slopes are four fusions: ``cos`` and ``sin``
     were evaluated four times per step, the larger part of a batch's root step
-    (``benchmarks/bench_drivers.py``: 2.3x on a batch of spinning sticks).
+    (a batch of spinning sticks, ``benchmarks/bench_drivers.py``).
     Both come from one polynomial evaluation that vectorises
     (``jaxbill._engine.trig``), where XLA:CPU calls ``cos`` and ``sin`` value by value.
     """
@@ -123,10 +123,10 @@ def wrapped_angle(phi):
 
     In a lockstep batch (``vmapped_over_lanes``) by ``trig.remainder_two_pi``'s
     exact arithmetic, which vectorises, where XLA:CPU calls ``fmod`` value by
-    value (the circle billiard's batch 1.3x faster), and ``jnp.remainder``
+    value (a large share of the circle billiard's short collision), and ``jnp.remainder``
     itself past ``2**26`` turns (``rarely``). Elsewhere ``jnp.remainder``: one
     orbit is bound by the chain of dependent operations, which the library's
-    ``fmod`` keeps shorter (the circle's orbit ran 1.14x slower without it),
+    ``fmod`` keeps shorter (the circle's orbit ran slower without it),
     and the lane drivers would compute both sides of a ``rarely``.
     """
     shifted = phi + jnp.pi
@@ -180,14 +180,15 @@ def rarely(condition, if_true, if_false, *operands):
 
     One orbit on XLA:CPU takes a branch, so the rare case (a corner: a second
     end on the wall at the same instant) costs nothing where it does not
-    happen: a static lens's orbit ran 1.6x faster without it. Under ``vmap``
+    happen, which a static lens's short collisions notice. Under ``vmap``
     a branch becomes a select and both sides are computed; inside
     ``vmapped_over_lanes`` the lanes first ask whether any of them needs the
-    rare side, and compute it only then (a lockstep batch of lenses: 1.75x).
+    rare side, and compute it only then, where a select would pay for it in every lane.
     The XLA lane driver (``without_conditionals``) selects; the Pallas kernel
     (``rare_by_block``) computes the rare side only in blocks of lanes where
-    some lane needs it (the spinning stick's kernel 1.18x faster, the lens's
-    1.8x, on an H100). The values are the same every way.
+    some lane needs it (measured on a GPU: the performance page, "On a GPU").
+    The values are the same every way. ``benchmarks/HISTORY.md`` has each
+    change's measurements.
     """
 
     def select_per_lane(*ops):
@@ -304,14 +305,15 @@ def advance(scene, state: jax.Array, constants: Any):
 
 def advance_components(scene, parts: tuple, constants: Any) -> Collision:
     """``advance`` on a state's components, in and out, with the collision's status: a loop that carries
-    them never packs a state into an array and slices it again at every collision (one orbit of the walls
-    1.1x faster)."""
+    them never packs a state into an array and slices it again at every collision (the closed forms'
+    single orbits, whose collisions are short, gain most)."""
     refused = None
     if scene.searches_for_roots:
         t, index, ok = searched_contact_time(scene, parts)
         refused = refused_search(scene, index)
     else:
-        # Each part computed once (see ``computed_once``): a lockstep batch of lenses 2.7x faster.
+        # Each part computed once (see ``computed_once``), not in every fusion that consumes it: a
+        # lockstep batch of lenses, whose collisions are short, paid for each part several times.
         t, index = computed_once(lambda p, c: scene.closed_form_contact(p, c), parts, constants)
         ok = jnp.array(True)
     t_reached = jnp.where(jnp.isfinite(t), t, 0.0)

@@ -261,8 +261,8 @@ def push_frame(scene: Scene, state: jax.Array, coefficients: jax.Array, *, flow:
     only those coordinates are differentiated: the others (the static lens's
     and the circle's ``alpha`` and ``omega``) get no tangent at all, where
     zero tangents would be carried through every operation of the collision
-    (a spectrum of the circle billiard 1.2x faster, the static lens 1.1x; the
-    same values to the bit, since those zeros only ever added zero).
+    (a spectrum of the circle billiard or the static lens runs faster for it;
+    the same values to the bit, since those zeros only ever added zero).
     """
     pushed = pushed_frame(scene, state, coefficients, flow=flow, constants=constants)
     return pushed.state, pushed.dt, pushed.contact, pushed.frame

@@ -4,10 +4,10 @@ and the remainder by ``2 pi``.
 XLA:CPU evaluates a float64 ``cos``, ``sin`` or remainder (``fmod``) as a
 library call per value, lane by lane, even in a vectorised loop: in a
 lockstep batch of spinning sticks the cosine and sine of each root step cost
-14 ns a lane, as much as the rest of the step. Here both come from one
-argument reduction and two polynomials, elementwise arithmetic that runs four
-lanes to an instruction (2.4 ns a lane) and lowers unchanged in a Pallas
-kernel.
+as much as the rest of the step. Here both come from one argument reduction
+and two polynomials, elementwise arithmetic that runs four lanes to an
+instruction and lowers unchanged in a Pallas kernel (the measurements, before
+and after: ``benchmarks/HISTORY.md``).
 
 The cosine and sine (``tests/test_trig.py``, against 60-digit mpmath): within ``1.11 *
 2**-53`` absolute of the true values for ``|phi| < 1e4`` (about one ulp of a
@@ -43,7 +43,7 @@ _COS_COEFFICIENTS = tuple((-1) ** i / math.factorial(2 * i) for i in range(2, 9)
 
 def _estrin(coefficients: tuple, z):
     """``sum_i coefficients[i] z^i`` by Estrin's scheme: pairs, then pairs of pairs. Its chain of
-    dependent operations is half Horner's, and one orbit is bound by that chain (1.25x faster)."""
+    dependent operations is half Horner's, and one orbit is bound by that chain's latency."""
     terms, power = list(coefficients), z
     while len(terms) > 1:
         paired = [terms[i] + terms[i + 1] * power for i in range(0, len(terms) - 1, 2)]
@@ -95,9 +95,12 @@ EXACT_REMAINDER_LIMIT = 2.0**26 * TWO_PI
 def remainder_two_pi(x):
     """``jnp.remainder(x, TWO_PI)`` to the bit for ``|x| < EXACT_REMAINDER_LIMIT``, in arithmetic that vectorises.
 
-    The circle billiard's batch, whose collisions are a few dozen flops, ran
-    1.47x faster with an inexact wrap (``x - 2 pi floor(x / 2 pi)``) than with
-    the library's ``fmod``, and 1.28x faster with this exact one.
+    XLA:CPU calls ``fmod`` value by value, a large share of the circle
+    billiard's collision, which is a few dozen flops. An inexact wrap
+    (``x - 2 pi floor(x / 2 pi)``) vectorises, and so runs faster, but is not
+    ``jnp.remainder`` to the bit; this exact one vectorises too and keeps most
+    of that gain (the circle's batch, measured before and after:
+    ``benchmarks/HISTORY.md``).
 
     The remainder of ``|x|`` by ``TWO_PI`` is exact here as in ``fmod``:
     ``turns * HIGH`` and ``turns * LOW`` are exact products; ``|x| - turns *

@@ -41,10 +41,10 @@ def check_scene(scene) -> None:
 
     A scene is a frozen ``equinox.Module``; with JAX arrays for leaves nothing
     in it can change, and a scene with other leaves (``eqx.tree_at``) is a
-    new object. Checked at every call, its parameters cost 0.05 ms, and 0.4 ms
-    just after a long orbit had evicted the interpreter from the caches: the
-    lens's and the circle's orbits of 2e5 collisions ran 1.5-2.5% faster
-    without it.
+    new object. Checking its parameters at every call cost each call a little,
+    and more just after a long orbit had evicted the interpreter from the
+    caches: the lens's and the circle's orbits of 2e5 collisions ran
+    measurably faster without it (``benchmarks/HISTORY.md``).
     """
     key = id(scene)
     known = _CHECKED_SCENES.get(key)
@@ -229,8 +229,8 @@ def _offending(scene, states: jax.Array):
 @jax.jit
 def _all_valid(scene, states: jax.Array) -> jax.Array:
     """Whether no row of ``states`` offends: one flag comes back to the host, not every gap and speed
-    of the batch (on an H100, copying those back made ``jb.run`` of 1e6 lenses about 55 ms slower,
-    where its kernel takes 8 ms)."""
+    of the batch (on a GPU, copying those back cost ``jb.run`` of a million lenses more than its kernel
+    took: the performance page, "On a GPU")."""
     return ~jnp.any(jnp.stack([jnp.any(o) for o in _offending(scene, states)]))
 
 

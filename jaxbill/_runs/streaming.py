@@ -49,13 +49,13 @@ from jaxbill._runs.files import (
 )
 
 # Default chunk: about this many collisions (all orbits together) per compiled
-# call, 0.06-1.6 s at a CPU's measured rates: long enough that the host round
-# trip between chunks costs little, short enough for a live progress bar.
+# call: at the rates a CPU reaches (the performance page), long enough that the host
+# round trip between chunks costs little, short enough for a live progress bar.
 COLLISIONS_PER_CHUNK = 1 << 22
 # A run that records nothing per collision (``record="final"``, default chunk)
 # quadruples its chunk after every call that took under a quarter of this: on a
-# GPU, 2**22 collisions over 2**20 orbits are 4 collisions per orbit, a few ms of
-# work per call. The chunk is a traced argument there, so nothing recompiles.
+# GPU, 2**22 collisions over 2**20 orbits are 4 collisions per orbit, too little
+# work to pay for a call. The chunk is a traced argument there, so nothing recompiles.
 SECONDS_PER_CHUNK = 1.0
 # Default bound on one chunk's records on the device (states or section points).
 RECORD_BYTES_PER_CHUNK = 1 << 26
@@ -518,7 +518,7 @@ def run(
         every: with ``record="states"``, record every ``every``-th collision.
         chunk: collisions per orbit per compiled call (default: about ``2**22``
             collisions over all orbits, with at most ``RECORD_BYTES_PER_CHUNK``
-            of records; with ``record="final"`` it then grows 4x after every
+            of records; with ``record="final"`` it then quadruples after every
             call shorter than ``SECONDS_PER_CHUNK / 4``). Results do not depend on it.
         out: a directory to write the run into: ``.npy`` records (memory-mappable,
             written chunk by chunk, so host memory stays bounded) and

@@ -52,7 +52,8 @@ CONTACT_CODES = (-CEILING, -FLOOR, NO_CONTACT, FLOOR, SEVERAL_CONTACTS, CEILING)
 _CORNER_ULPS = 64.0
 
 # Orbits per vectorised lane of a batch on a CPU: a turning stick's orbits one after
-# another (1.4x lanes of 16: its search branches), the static one's closed form in 256.
+# another (its search branches, and a lane would wait for its slowest orbit), the static
+# one's closed form in 256 (``benchmarks/bench_drivers.py`` measures the widths).
 _BATCH_CHUNK = {"rotor": 1, "static": 256}
 
 
