@@ -20,6 +20,7 @@ jax = pytest.importorskip("jax")
 jb = pytest.importorskip("jaxbill")
 import jax.numpy as jnp  # noqa: E402
 
+from jaxbill._check.checker import flight_for  # noqa: E402
 from jaxbill._scenes import protocols as _scene  # noqa: E402
 from jaxbill._scenes.ellipse.sections import arc_length, ellipse_length  # noqa: E402
 
@@ -49,7 +50,7 @@ def test_checker_agrees_with_orbit(parameters, state0):
 def test_checker_reflection_is_the_impulse_law():
     """Specular reflection about the gradient of the gap in ``(x, y, sqrt(I/M) alpha)`` is ``kick``."""
     scene = jb.StickInEllipse(a=A, b=B, ell=0.7, mass=0.8, inertia=0.09)
-    flight = scene.checker_flight()
+    flight = flight_for(scene, scene.checker_flight())
     scale = math.sqrt(0.09 / 0.8)
     t_contact, alpha = 2.2, 0.4  # end P1 on the wall at parameter angle t_contact
     point = np.array([A * math.cos(t_contact), B * math.sin(t_contact)])
@@ -188,7 +189,7 @@ SCENES = [
 def test_every_scene_answers_the_capability_protocols(scene):
     assert scene.area_preserving_section in scene.sections
     assert scene.periodic_symmetry in _scene.PERIODIC_SYMMETRIES
-    assert isinstance(scene.checker_flight(), _scene.CheckerFlight)
+    assert isinstance(flight_for(scene, scene.checker_flight()), _scene.CheckerFlight)
     assert isinstance(scene.section_chart, _scene.SectionChart)
     with pytest.raises(ValueError, match="name must be one of"):
         scene.section(jnp.zeros((1, scene.state_size)), jnp.ones(1, jnp.int32), name="no such section")
