@@ -465,3 +465,18 @@ def test_bad_parameters_under_jit_poison_the_orbit_with_nan():
 
     assert np.all(np.isfinite(np.asarray(jax.jit(first_state)(0.25))))
     assert np.all(np.isnan(np.asarray(jax.jit(first_state)(0.7))))
+
+
+def test_a_table_outline_breaks_between_separate_walls():
+    """The picture of a table with an obstacle joins no wall to another: every drawn segment is one step of
+    the boundary, and the outline breaks (NaN) where it passes to the disc."""
+    from jaxbill._scenes.body_sections import table_outline
+
+    table = jb.Sinai(0.25)
+    points = table_outline(jb.BodyInTable(jb.PointBody(), table))
+    step = float(table.boundary_length) / 720
+    segments = np.linalg.norm(np.diff(points, axis=0), axis=-1)
+    assert np.isnan(points[:, 0]).any()
+    assert np.nanmax(segments) <= 2.0 * step
+    on_disc = np.isclose(np.hypot(points[:, 0], points[:, 1]), 0.25, atol=1e-12)
+    assert on_disc.sum() > 100  # the disc is drawn, not left out

@@ -247,7 +247,11 @@ def table_outline(scene, x_span=None) -> np.ndarray:
         return np.concatenate([[[low, 0.0], [high, 0.0]], nan, [[low, h], [high, h]]])
     s = np.linspace(0.0, float(table.boundary_length), 721)
     x, y, _ = table.boundary_point(jnp.asarray(s))
-    return np.stack([np.asarray(x), np.asarray(y)], axis=-1)
+    points = np.stack([np.asarray(x), np.asarray(y)], axis=-1)
+    # Where the boundary jumps (from the outer wall to an obstacle, or between obstacles) the line breaks: a
+    # continuous boundary moves at most one arc-length step between samples.
+    jumps = np.flatnonzero(np.linalg.norm(np.diff(points, axis=0), axis=-1) > 2.0 * (s[1] - s[0])) + 1
+    return np.insert(points, jumps, np.nan, axis=0)
 
 
 def draw_orbit(ax, scene, state0, orb, color, *, body_every: int = 1):
