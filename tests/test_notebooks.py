@@ -3,9 +3,10 @@
 Each ``notebooks/*.ipynb`` is executed with nbclient in a fresh kernel (the
 ``python3`` kernel of the running interpreter), with a time limit per cell;
 any cell that raises fails the test. Outputs are not compared: the committed
-notebooks carry the outputs of their last full run. The two studies (09, 10) and the
-gallery of bodies in tables (11) end with assertions on the numbers they recompute,
-within the error bars they compute, so that a changed verdict fails here too.
+notebooks carry the outputs of their last full run. The two studies (09, 10), the
+gallery of bodies in tables (11) and the standard billiards' reference numbers (12)
+end with assertions on the numbers they recompute, within the error bars they
+compute, so that a changed verdict fails here too.
 
 To re-execute the notebooks and save their outputs in place::
 
@@ -54,7 +55,10 @@ def test_notebook_runs(path):
     assert not errors, f"{path.name}: {errors[0]['ename']}: {errors[0]['evalue']}"
 
 
-@pytest.mark.parametrize("name", ["09_small_stick_chaos.ipynb", "10_arnold_web.ipynb", "11_bodies_and_tables.ipynb"])
+@pytest.mark.parametrize(
+    "name",
+    ["09_small_stick_chaos.ipynb", "10_arnold_web.ipynb", "11_bodies_and_tables.ipynb", "12_standard_billiards.ipynb"],
+)
 def test_the_studies_end_by_asserting_what_they_recompute(name):
     """The studies' verdicts are held by assertions in their last cell, which fail the run above."""
     code = [cell for cell in nbformat.read(NOTEBOOKS / name, as_version=4).cells if cell.cell_type == "code"]
