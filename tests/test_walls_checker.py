@@ -283,6 +283,7 @@ def test_a_wrong_reference_is_caught(monkeypatch):
                 t=o.t.at[10].add(1e-7 * 3.0 / math.sqrt(2 * float(scene.energy(jnp.asarray(s))))),
                 contact=o.contact,
                 state=o.state,
+                result=o.result,
             )
         return o
 
