@@ -85,7 +85,8 @@ def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, 
     def finish(loop):
         lanes, running, done, records = loop
         lanes, collided, collision = end_and_begin_lanes(lanes, done < steps, constants)
-        running = books.after(running, collision._replace(state=stacked(collision.state)), collided)
+        collision = books.held(running, collision._replace(state=stacked(collision.state)))
+        running = books.after(running, collision, collided)
         done = done + collided.astype(jnp.int32)
         records = record(records, collided, start + done, running.state, running.time, collision.contact)
         return lanes, running, done, records

@@ -8,6 +8,7 @@ happened first, and what followed (NaN from then on) says nothing new.
 from __future__ import annotations
 
 import enum
+import functools
 
 import jax.numpy as jnp
 
@@ -46,6 +47,12 @@ class Result(enum.IntEnum):
     ROOT_STEPS_EXHAUSTED = 3
     NON_FINITE = 4
     BOUND_VIOLATED = 5
+    ESCAPED = 6
+    STOPPED = 7
+
+
+# An orbit that ends with one of these stays where it ended (``jaxbill._engine.chunks.Bookkeeping``).
+STOPPING = (Result.ESCAPED, Result.STOPPED)
 
 
 def collision_status(t, search_ended, refused=None):
@@ -61,6 +68,11 @@ def collision_status(t, search_ended, refused=None):
     if refused is not None:
         status = jnp.where(refused, jnp.int32(Result.BOUND_VIOLATED), status)
     return jnp.where(search_ended, status, jnp.int32(Result.ROOT_STEPS_EXHAUSTED))
+
+
+def has_stopped(result):
+    """Whether orbits of ``result`` have ended for good (``STOPPING``): every later collision is held."""
+    return functools.reduce(jnp.logical_or, [result == jnp.int32(code) for code in STOPPING])
 
 
 def first_failure(result, status, collided=None):

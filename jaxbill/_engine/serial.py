@@ -40,7 +40,7 @@ def orbit_chunk(plan: Plan, scene, state0: jax.Array, carry: Carry, start: Any, 
     books = Bookkeeping(plan, scene, state0)
 
     def collide(running):
-        collision = advance_components(scene, running.state, constants)
+        collision = books.held(running, advance_components(scene, running.state, constants))
         return books.after(running, collision), collision.contact
 
     def skip(running, count):
