@@ -118,7 +118,8 @@ def _hole_intervals(holes, body: Body, table: Table) -> tuple[tuple[float, float
         )
     if "birkhoff" not in table.section_names:
         raise ValueError(
-            f"holes: {table.name} ({type(table).__name__}) has no bounded boundary to measure arc length along"
+            f"holes: {table.name} ({type(table).__name__}) has no Birkhoff section, so no arc length along a "
+            "bounded boundary to place a hole on"
         )
     intervals.sort()
     for (low, high), (next_low, next_high) in zip(intervals, intervals[1:]):
