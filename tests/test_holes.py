@@ -105,6 +105,25 @@ def test_a_resumed_run_stays_escaped_at_the_exit_time():
     np.testing.assert_allclose(rest.final_state, arrival, atol=1e-12)
 
 
+def _every_collision(scene, state, contact):
+    return True
+
+
+@pytest.mark.parametrize("driver", ["serial", "lanes"])
+def test_a_section_records_the_exit_and_nothing_after_it(driver):
+    radius, phi0, theta, holes = CIRCLE_CASES["six chords"]
+    k, exit_time, arrival = circle_escape(radius, phi0, theta, holes)
+    scene = jb.BodyInTable(jb.PointBody(), jb.Circle(radius), holes=holes)
+    starts = np.stack([circle_start(radius, phi0, theta)] * 2)
+    run = jb.run(scene, starts, k + 5, record=jb.Section(where=_every_collision), driver=driver)
+    assert run.section is not None
+    for orbit in (0, 1):
+        mine = run.section.orbit == orbit
+        np.testing.assert_array_equal(run.section.collision[mine], np.arange(1, k + 1))
+        np.testing.assert_allclose(run.section.point[mine][-1], arrival, atol=1e-12)
+        assert abs(run.section.t[mine][-1] - exit_time) < 1e-13 * exit_time
+
+
 # ---------------------------------------------------------------------------
 # Kac's lemma: the mean return time to a hole of an ergodic billiard
 # ---------------------------------------------------------------------------

@@ -221,6 +221,11 @@ class Bookkeeping:
             status=jnp.where(ended, jnp.int32(Result.FINISHED), collision.status),
         )
 
+    def ended(self, running: Running):
+        """Whether each orbit had ended for good at ``running``, so that its next collision is held (``held``):
+        a section records no held collision (an ended orbit's one state, over and over)."""
+        return has_stopped(running.result) if self.stops else jnp.zeros(jnp.shape(running.time), bool)
+
     def after(self, running: Running, collision: Collision, collided: Any = None) -> Running:
         """``running`` after ``collision`` (where ``collided``; ``None``: every orbit collided)."""
 
@@ -325,8 +330,11 @@ def record_section_point(plan: Plan, scene, records: tuple, kept: Any, number: A
     )
 
 
-def record_collision(plan: Plan, scene, records: tuple, collided, number, start, state, time, contact) -> tuple:
-    """One orbit's records after a turn of a lane driver in which it may have completed collision ``number``."""
+def record_collision(
+    plan: Plan, scene, records: tuple, collided, number, start, state, time, contact, held=False
+) -> tuple:
+    """One orbit's records after a turn of a lane driver in which it may have completed collision ``number``
+    (``held``: one of an orbit that had ended, which a section does not record)."""
     if plan.record == "final":
         return records
     if plan.record == "states":
@@ -338,7 +346,7 @@ def record_collision(plan: Plan, scene, records: tuple, collided, number, start,
         return record_state(records, row, state, time, contact)
     if plan.where is None:
         raise ValueError(f"a {plan.record!r} plan records every collision, not a section")
-    kept = collided & jnp.asarray(plan.where(scene, state, contact), dtype=bool)
+    kept = collided & ~held & jnp.asarray(plan.where(scene, state, contact), dtype=bool)
     return record_section_point(plan, scene, records, kept, number, state, time)
 
 

@@ -36,7 +36,17 @@ class Result(enum.IntEnum):
       the search (``jb.ConvexTable``: estimated or given ``hessian_bound``)
       showed a gap curving beyond them, so a root could have been stepped
       over: the search stopped there, NaN from there on. Give larger bounds.
+    * ``ESCAPED`` (6): the orbit left the table through a hole in its
+      boundary (``jb.BodyInTable(..., holes=...)``): a collision's contact
+      point lay in a hole. From then on the orbit stays as it arrived there
+      (the state before any impulse, the time of the exit); that collision's
+      contact is ``-1`` and every later one is ``0``, with ``dt = 0``.
+    * ``STOPPED`` (7): the scene's stopping condition held just after a
+      collision (``jb.BodyInTable(..., stop_when=...)``): the orbit stays
+      as it was then (the state after that collision's impulse, its time);
+      every later collision has contact ``0`` and ``dt = 0``.
 
+    ``ESCAPED`` and ``STOPPED`` are no failure: the orbit ended as asked.
     ``jb.Result(code)`` names a code; ``result == jb.Result.FINISHED`` tests a
     batch of them.
     """
