@@ -341,7 +341,8 @@ class BodyInTable(eqx.Module):
 
     @property
     def contact_codes(self) -> tuple[int, ...]:
-        """Every contact code a collision can have: none, several at once, and one per gap."""
+        """Every contact code a collision can have: the exit through a hole (with holes), none, several at once,
+        and one per gap."""
         several = (SEVERAL_CONTACTS,) if len(self._cornering) > 1 else ()
         escape = (ESCAPE_CODE,) if self.holes else ()
         return (*escape, NO_CONTACT, *several, *self.gap_codes)
