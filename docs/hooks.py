@@ -241,6 +241,8 @@ ENGINE_MEMBERS = (
     "collide_at",
     "contact_codes",
     "checks_curvature",
+    "escape_code",
+    "stop_condition",
     # the capabilities the analyses ask for (jb.explore, jb.check, jb.sample_energy_shell,
     # the tangent maps: the user calls those)
     "section_chart",

@@ -29,8 +29,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbill._engine.results import collision_status, first_failure, start_result
-from jaxbill._engine.step import NO_CONTACT, Collision
+from jaxbill._engine.results import Result, collision_status, first_failure, has_stopped, start_result
+from jaxbill._engine.step import NO_CONTACT, Collision, stops_orbits
 
 # Contact codes counted one by one in the running statistics: every scene's codes
 # lie in -4..4 (StickInCircle: -1, 0, 1, 2; the wall scenes add -3, 3). Any other
@@ -193,12 +193,38 @@ class Bookkeeping:
         # keeps either from then on (a NaN absorbs every later flight, a flight with no wall repeats): its
         # result is read from its time once per chunk. A searched one may also run out of steps or be
         # refused, which only the collision knows.
-        self.status_per_collision = scene.searches_for_roots
+        # An orbit that can end for good (a hole, a stopping condition) reads its result collision by collision
+        # too, and is held from then on (``held``).
+        self.stops = stops_orbits(scene)
+        self.status_per_collision = scene.searches_for_roots or self.stops
 
     def running(self, carry: Carry, state: Any, shape: tuple[int, ...] = ()) -> Running:
         """The running values at the start of a chunk from ``carry``, the state as the driver keeps it
         (``shape``: the orbits' shape, for the tally)."""
         return Running(state, carry.time, carry.max_energy_error, empty_tally(self.codes, shape), carry.result)
+
+    def held(self, running: Running, collision: Collision) -> Collision:
+        """``collision``, or for an orbit that has ended for good (``Result.ESCAPED``, ``Result.STOPPED``) none:
+        its state as it was, ``dt = 0``, contact ``0``.
+
+        Every driver passes each collision through here before ``after`` and its
+        records, so an ended orbit's time stays the time it ended at, exactly,
+        and no later collision is counted against a wall.
+        """
+        if not self.stops:
+            return collision
+        ended = has_stopped(running.result)
+        return Collision(
+            state=_where(ended, running.state, collision.state),
+            dt=jnp.where(ended, 0.0, collision.dt),
+            contact=jnp.where(ended, jnp.int32(NO_CONTACT), collision.contact),
+            status=jnp.where(ended, jnp.int32(Result.FINISHED), collision.status),
+        )
+
+    def ended(self, running: Running):
+        """Whether each orbit had ended for good at ``running``, so that its next collision is held (``held``):
+        a section records no held collision (an ended orbit's one state, over and over)."""
+        return has_stopped(running.result) if self.stops else jnp.zeros(jnp.shape(running.time), bool)
 
     def after(self, running: Running, collision: Collision, collided: Any = None) -> Running:
         """``running`` after ``collision`` (where ``collided``; ``None``: every orbit collided)."""
@@ -304,8 +330,11 @@ def record_section_point(plan: Plan, scene, records: tuple, kept: Any, number: A
     )
 
 
-def record_collision(plan: Plan, scene, records: tuple, collided, number, start, state, time, contact) -> tuple:
-    """One orbit's records after a turn of a lane driver in which it may have completed collision ``number``."""
+def record_collision(
+    plan: Plan, scene, records: tuple, collided, number, start, state, time, contact, held=False
+) -> tuple:
+    """One orbit's records after a turn of a lane driver in which it may have completed collision ``number``
+    (``held``: one of an orbit that had ended, which a section does not record)."""
     if plan.record == "final":
         return records
     if plan.record == "states":
@@ -317,7 +346,7 @@ def record_collision(plan: Plan, scene, records: tuple, collided, number, start,
         return record_state(records, row, state, time, contact)
     if plan.where is None:
         raise ValueError(f"a {plan.record!r} plan records every collision, not a section")
-    kept = collided & jnp.asarray(plan.where(scene, state, contact), dtype=bool)
+    kept = collided & ~held & jnp.asarray(plan.where(scene, state, contact), dtype=bool)
     return record_section_point(plan, scene, records, kept, number, state, time)
 
 

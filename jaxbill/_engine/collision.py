@@ -35,12 +35,14 @@ class Orbit(eqx.Module):
         contact: ``(n,)`` int32: which end touched which wall (the codes are
             the scene's; ``StickInCircle``: ``+1`` end P1, ``-1`` end P2), ``2``
             several contacts at once (a corner), ``0`` none (the flight never
-            reaches a wall: ``t = inf`` from then on).
+            reaches a wall: ``t = inf`` from then on; or the orbit has ended:
+            ``dt = 0`` from then on), ``-1`` an exit through a hole.
         state: ``(n, S)`` the state just after each collision
             (``S = scene.state_size``).
         result: ``()`` int32: why the orbit stopped, or what went wrong first
             (``jb.Result``: ``FINISHED``, ``INVALID_START``, ``NO_WALL``,
-            ``ROOT_STEPS_EXHAUSTED``, ``NON_FINITE``, ``BOUND_VIOLATED``).
+            ``ROOT_STEPS_EXHAUSTED``, ``NON_FINITE``, ``BOUND_VIOLATED``,
+            ``ESCAPED``, ``STOPPED``).
     """
 
     t: Float[Array, "*batch n"]
@@ -83,6 +85,8 @@ def collide(scene: Scene, state: Float[ArrayLike, " S"]) -> tuple[Float[Array, "
         ``+3``/``-3`` on the ceiling; ``2`` several contacts at once, ``0``
         none. A flight that never reaches a wall (e.g. ``v = 0`` with ``|c| +
         ell < R``) returns ``dt = inf``, contact 0 and the state unchanged.
+        A point that reaches a hole of a ``jb.BodyInTable`` (``holes=``)
+        returns the state as it arrives there, the flight time and contact ``-1``.
         After a collision angles are wrapped into ``[-pi, pi)``.
 
     What follows describes ``StickInCircle``; every scene whose gaps are not

@@ -30,6 +30,13 @@ class Scene(Protocol):
     bounds of its root search along the way and refuses a step that breaks
     them by a NaN gap with a finite slope, which an orbit's result then
     reports as ``BOUND_VIOLATED`` (``jaxbill._engine.first_root.REFUSED``).
+    Two ways to end an orbit for good (``jaxbill._engine.step.stops_orbits``;
+    the drivers then hold it, ``jaxbill._engine.chunks.Bookkeeping.held``):
+    ``escape_code`` (static, default ``None``), the contact code
+    ``collide_at`` gives a collision through a hole, with the state as it
+    arrived (``ESCAPED``); and ``stop_condition`` (static, default ``None``),
+    a function of a state's components just after a collision that ends the
+    orbit there when true (``STOPPED``).
     """
 
     state_size: ClassVar[int]  # length of the state vector

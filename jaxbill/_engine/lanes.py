@@ -77,17 +77,19 @@ def _run_block(plan: Plan, scene, states0: jax.Array, carry: Carry, start: Any, 
     end_and_begin_lanes = jax.vmap(lambda lane, active, c: end_and_begin(scene, lane, active, c))
     step_lanes = jax.vmap(lambda lane: search_step(scene, lane))
     record = jax.vmap(
-        lambda records, collided, number, state, time, contact: record_collision(
-            plan, scene, records, collided, number, start, state, time, contact
+        lambda records, collided, held, number, state, time, contact: record_collision(
+            plan, scene, records, collided, number, start, state, time, contact, held
         )
     )
 
     def finish(loop):
         lanes, running, done, records = loop
         lanes, collided, collision = end_and_begin_lanes(lanes, done < steps, constants)
-        running = books.after(running, collision._replace(state=stacked(collision.state)), collided)
+        collision = books.held(running, collision._replace(state=stacked(collision.state)))
+        held = books.ended(running)
+        running = books.after(running, collision, collided)
         done = done + collided.astype(jnp.int32)
-        records = record(records, collided, start + done, running.state, running.time, collision.contact)
+        records = record(records, collided, held, start + done, running.state, running.time, collision.contact)
         return lanes, running, done, records
 
     def not_finished(loop):

@@ -101,7 +101,7 @@ def _kernel(treedef, leaf_count: int, size: int, block: int, dynamical: tuple | 
             pushed = tuple(p if i in dynamical else jnp.zeros_like(p) for i, p in enumerate(pushed))
         lane, collided, collision = end_and_begin(scene, lane, done < steps, constants)
         lane = _broadcast(lane, block)
-        running = books.after(running, collision, collided)
+        running = books.after(running, books.held(running, collision), collided)
         done = done + collided.astype(jnp.int32)
         if dynamical:
             vector, log_norm, fli = tangent

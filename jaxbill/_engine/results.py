@@ -8,6 +8,7 @@ happened first, and what followed (NaN from then on) says nothing new.
 from __future__ import annotations
 
 import enum
+import functools
 
 import jax.numpy as jnp
 
@@ -35,7 +36,17 @@ class Result(enum.IntEnum):
       the search (``jb.ConvexTable``: estimated or given ``hessian_bound``)
       showed a gap curving beyond them, so a root could have been stepped
       over: the search stopped there, NaN from there on. Give larger bounds.
+    * ``ESCAPED`` (6): the orbit left the table through a hole in its
+      boundary (``jb.BodyInTable(..., holes=...)``): a collision's contact
+      point lay in a hole. From then on the orbit stays as it arrived there
+      (the state before any impulse, the time of the exit); that collision's
+      contact is ``-1`` and every later one is ``0``, with ``dt = 0``.
+    * ``STOPPED`` (7): the scene's stopping condition held just after a
+      collision (``jb.BodyInTable(..., stop_when=...)``): the orbit stays
+      as it was then (the state after that collision's impulse, its time);
+      every later collision has contact ``0`` and ``dt = 0``.
 
+    ``ESCAPED`` and ``STOPPED`` are no failure: the orbit ended as asked.
     ``jb.Result(code)`` names a code; ``result == jb.Result.FINISHED`` tests a
     batch of them.
     """
@@ -46,6 +57,12 @@ class Result(enum.IntEnum):
     ROOT_STEPS_EXHAUSTED = 3
     NON_FINITE = 4
     BOUND_VIOLATED = 5
+    ESCAPED = 6
+    STOPPED = 7
+
+
+# An orbit that ends with one of these stays where it ended (``jaxbill._engine.chunks.Bookkeeping``).
+STOPPING = (Result.ESCAPED, Result.STOPPED)
 
 
 def collision_status(t, search_ended, refused=None):
@@ -61,6 +78,11 @@ def collision_status(t, search_ended, refused=None):
     if refused is not None:
         status = jnp.where(refused, jnp.int32(Result.BOUND_VIOLATED), status)
     return jnp.where(search_ended, status, jnp.int32(Result.ROOT_STEPS_EXHAUSTED))
+
+
+def has_stopped(result):
+    """Whether orbits of ``result`` have ended for good (``STOPPING``): every later collision is held."""
+    return functools.reduce(jnp.logical_or, [result == jnp.int32(code) for code in STOPPING])
 
 
 def first_failure(result, status, collided=None):

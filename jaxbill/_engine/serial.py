@@ -40,7 +40,7 @@ def orbit_chunk(plan: Plan, scene, state0: jax.Array, carry: Carry, start: Any, 
     books = Bookkeeping(plan, scene, state0)
 
     def collide(running):
-        collision = advance_components(scene, running.state, constants)
+        collision = books.held(running, advance_components(scene, running.state, constants))
         return books.after(running, collision), collision.contact
 
     def skip(running, count):
@@ -60,9 +60,10 @@ def orbit_chunk(plan: Plan, scene, state0: jax.Array, carry: Carry, start: Any, 
 
         def record_if_kept(i, loop):
             running, records = loop
+            held = books.ended(running)
             running, contact = collide(running)
             state = stacked(running.state)
-            kept = jnp.asarray(where(scene, state, contact), dtype=bool)
+            kept = jnp.asarray(where(scene, state, contact), dtype=bool) & ~held
             return running, record_section_point(plan, scene, records, kept, start + i + 1, state, running.time)
 
         running, records = jax.lax.fori_loop(0, steps, record_if_kept, (running, records))

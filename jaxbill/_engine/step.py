@@ -50,7 +50,7 @@ import numpy as np
 
 from jaxbill._engine.first_root import REFUSED, first_root, root_step, search_start, select, with_curvatures
 from jaxbill._engine.interface import NO_CONTACT
-from jaxbill._engine.results import collision_status
+from jaxbill._engine.results import Result, collision_status
 from jaxbill._engine.trig import EXACT_REMAINDER_LIMIT, TWO_PI, cos_sin_polynomial, remainder_two_pi
 from jaxbill._engine.validation import is_concrete
 
@@ -237,11 +237,34 @@ def checks_its_bounds(scene) -> bool:
     return bool(getattr(scene, "checks_curvature", False))
 
 
-def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok, refused=None) -> Collision:
+def escape_code(scene) -> int | None:
+    """Static: the contact code of a collision through a hole in ``scene``'s boundary (``None``: it has none)."""
+    return getattr(scene, "escape_code", None)
+
+
+def stop_condition(scene):
+    """Static: ``scene``'s condition on a state's components just after a collision that ends its orbit
+    (``Result.STOPPED``), or ``None``."""
+    return getattr(scene, "stop_condition", None)
+
+
+def stops_orbits(scene) -> bool:
+    """Static: an orbit of ``scene`` can end for good (``jaxbill._engine.results.STOPPING``), so the
+    drivers hold it from then on and read its result collision by collision."""
+    return escape_code(scene) is not None or stop_condition(scene) is not None
+
+
+def finish_step(
+    state: tuple, moved_and_kicked: tuple, t, contact, ok, refused=None, escape=None, stop=None
+) -> Collision:
     """A collision's result: unchanged for a flight that never ends, NaN for a failed search.
 
     ``ok``: the search ended within its step bound; ``refused``: the scene
-    refused a step of it (``None``: a scene that never does).
+    refused a step of it (``None``: a scene that never does). ``escape``: the
+    contact code of an exit through a hole (``None``: the scene has none);
+    ``stop``: whether the scene's stopping condition holds after the
+    collision (``None``: it has none). Either ends the orbit
+    (``Result.ESCAPED``, ``Result.STOPPED``) where the collision was reached.
     """
     reached = jnp.isfinite(t)
     status = collision_status(t, ok, refused)
@@ -250,7 +273,21 @@ def finish_step(state: tuple, moved_and_kicked: tuple, t, contact, ok, refused=N
     contact = jnp.where(reached, contact, jnp.int32(NO_CONTACT))
     new_state = tuple(jnp.where(ok, a, jnp.nan) for a in new_state)
     contact = jnp.where(ok, contact, jnp.int32(NO_CONTACT))
+    ended = reached & ok & (status == Result.FINISHED)
+    escaped = jnp.zeros(jnp.shape(t), bool)
+    if escape is not None:
+        escaped = ended & (contact == escape)
+        status = jnp.where(escaped, jnp.int32(Result.ESCAPED), status)
+    if stop is not None:
+        status = jnp.where(ended & ~escaped & stop, jnp.int32(Result.STOPPED), status)
     return Collision(new_state, jnp.where(ok, t, jnp.nan), contact, status)
+
+
+def finish_scene_step(scene, state: tuple, moved_and_kicked: tuple, t, contact, ok, refused=None) -> Collision:
+    """``finish_step`` with ``scene``'s ways to end an orbit: its holes and its stopping condition."""
+    condition = stop_condition(scene)
+    stop = None if condition is None else jnp.asarray(condition(moved_and_kicked), bool)
+    return finish_step(state, moved_and_kicked, t, contact, ok, refused, escape_code(scene), stop)
 
 
 def refused_search(scene, index):
@@ -318,7 +355,7 @@ def advance_components(scene, parts: tuple, constants: Any) -> Collision:
         ok = jnp.array(True)
     t_reached = jnp.where(jnp.isfinite(t), t, 0.0)
     kicked, contact = computed_once(lambda *args: scene.collide_at(*args), parts, t_reached, index, constants)
-    return finish_step(parts, kicked, t, contact, ok, refused)
+    return finish_scene_step(scene, parts, kicked, t, contact, ok, refused)
 
 
 # -- the lane state machine ---------------------------------------------------------
@@ -389,7 +426,7 @@ def end_flight(scene, lane: Lane, constants: Any) -> Collision:
     t = lane.t
     kicked, contact = scene.collide_at(lane.state, jnp.where(jnp.isfinite(t), t, 0.0), lane.index, constants)
     refused = refused_search(scene, lane.index) if scene.searches_for_roots else None
-    return finish_step(lane.state, kicked, t, contact, lane.found, refused)
+    return finish_scene_step(scene, lane.state, kicked, t, contact, lane.found, refused)
 
 
 def end_flight_tangent(scene, lane: Lane, constants: Any, tangent: tuple) -> tuple:

@@ -115,7 +115,8 @@ class Run:
 
     Attributes:
         final_state: ``(S,)`` / ``(B_local, S)`` the state just after the last collision.
-        time: ``()`` / ``(B_local,)`` absolute time of the last collision (0 at ``state0``).
+        time: ``()`` / ``(B_local,)`` absolute time of the last collision (0 at ``state0``); for an orbit
+            that ended (``jb.Result.ESCAPED``, ``STOPPED``), the time it ended at.
         collisions: collisions per orbit done, in all (also before a resume).
         contact_codes: the contact codes counted.
         contact_counts: ``(C + 1,)`` / ``(B_local, C + 1)`` int64: collisions with each code

@@ -41,6 +41,7 @@ from jaxbill._engine.validation import (
     is_concrete,
     motion_is_representable,
     on_wall_not_inwards,
+    real_parameter,
     require_x64,
 )
 from jaxbill._scenes import body_sections, impulse
@@ -59,6 +60,8 @@ from jaxbill._scenes.tables.base import Motion, Table
 
 # The contact code of gap g (0 and 2 are taken: no contact, several at once).
 FIRST_GAP_CODE = 3
+# The contact code of a collision through a hole: the orbit left the table there.
+ESCAPE_CODE = -1
 
 # Orbits per vectorised lane of a batch on a CPU for a closed form (a search branches: one orbit after another).
 CLOSED_FORM_LANES = 256
@@ -86,6 +89,45 @@ def _scalar(name: str, value) -> float:
     return float(array)
 
 
+def _hole_intervals(holes, body: Body, table: Table) -> tuple[tuple[float, float], ...]:
+    """``holes`` as sorted ``(s_low, s_high)`` float pairs, or ValueError naming what is wrong (the perimeter is
+    checked by ``BodyInTable._check_holes`` once the table's parameters are concrete)."""
+    if holes is None:
+        return ()
+    try:
+        pairs = [tuple(hole) for hole in holes]
+    except TypeError:
+        raise ValueError(f"holes must be a sequence of (s_low, s_high) pairs; got {holes!r}") from None
+    if not pairs:
+        return ()
+    intervals = []
+    for pair in pairs:
+        if len(pair) != 2:
+            raise ValueError(f"holes must be a sequence of (s_low, s_high) pairs; got the entry {pair!r}")
+        low, high = (float(real_parameter("holes", value)) for value in pair)
+        if not (np.isfinite(low) and np.isfinite(high) and 0.0 <= low < high):
+            raise ValueError(
+                f"holes: each hole (s_low, s_high) must have 0 <= s_low < s_high <= the perimeter, "
+                f"both finite; got ({low}, {high})"
+            )
+        intervals.append((low, high))
+    if body.kind != "point":
+        raise ValueError(
+            f"holes: only a point (jb.PointBody) leaves a table through a hole; a {type(body).__name__} has "
+            "extent, and which of its points in a hole would let it out is not defined"
+        )
+    if "birkhoff" not in table.section_names:
+        raise ValueError(
+            f"holes: {table.name} ({type(table).__name__}) has no Birkhoff section, so no arc length along a "
+            "bounded boundary to place a hole on"
+        )
+    intervals.sort()
+    for (low, high), (next_low, next_high) in zip(intervals, intervals[1:]):
+        if next_low < high:
+            raise ValueError(f"holes: the holes ({low}, {high}) and ({next_low}, {next_high}) overlap")
+    return tuple(intervals)
+
+
 class BodyInTable(eqx.Module):
     """A rigid ``body`` bouncing elastically inside a convex ``table``.
 
@@ -94,6 +136,26 @@ class BodyInTable(eqx.Module):
             ``jb.EllipseBody`` or any ``jb.Body``.
         table: a ``jb.Circle``, ``jb.Ellipse``, ``jb.Stadium``, ``jb.Polygon``,
             ``jb.Strip``, ``jb.ConvexTable`` or any ``jb.Table``.
+        holes: parts of the boundary through which a point leaves the table:
+            a sequence of arc-length intervals ``(s_low, s_high)`` on the
+            Birkhoff section's coordinate ``s`` (anticlockwise round the
+            table from its origin; see ``section``), with
+            ``0 <= s_low < s_high <= perimeter`` and no two overlapping (a
+            hole across ``s = 0`` is two holes, ``(s, perimeter)`` and
+            ``(0, s')``). A collision whose contact point lies in a hole
+            (ends included) ends the orbit: ``Result.ESCAPED``, the state as
+            it arrived (before any impulse), the time of the exit, contact
+            ``-1`` (``ESCAPE_CODE``); every later collision has contact ``0``
+            and ``dt = 0``. Only for ``jb.PointBody`` in a bounded table.
+        stop_when: ``stop_when(state) -> bool``, pure and traceable: the
+            orbit ends (``Result.STOPPED``) just after the first collision
+            whose state makes it true, and stays there (every later collision
+            has contact ``0`` and ``dt = 0``). ``state`` is the tuple of the
+            six components ``(x, y, alpha, vx, vy, omega)``, each a scalar or
+            an array of orbits (index it, ``state[0]``, and compute
+            elementwise: every driver, the GPU kernel included, calls it on
+            components). A module-level function reuses compiled code across
+            scenes; a fresh lambda compiles anew.
 
     Both are ``equinox.Module``s: their parameters are differentiable leaves,
     their kind (a point, a body that never turns) is static, so a scene
@@ -109,11 +171,16 @@ class BodyInTable(eqx.Module):
     Raises:
         TypeError: for a body or table of another type.
         ValueError: for a body that cannot touch one of the table's walls (the
-            coin touches flat walls only) or that cannot fit in the table.
+            coin touches flat walls only) or that cannot fit in the table;
+            for ``holes`` that are not intervals of the boundary, overlap, or
+            are given for a body other than a point or a table without a
+            bounded boundary; for a ``stop_when`` that is not callable.
     """
 
     body: Body
     table: Table
+    holes: tuple[tuple[float, float], ...] = eqx.field(static=True)
+    stop_when: Any = eqx.field(static=True)
 
     state_size: ClassVar[int] = 6
     state_layout: ClassVar[str] = "[x, y, alpha, vx, vy, omega]"
@@ -122,7 +189,7 @@ class BodyInTable(eqx.Module):
     periodic_angles: ClassVar[tuple[int, ...]] = (2,)  # compared modulo 2 pi when an orbit closes
     never_turning: ClassVar[str] = "a body that never turns"  # what messages call the body of infinite inertia
 
-    def __init__(self, body: Body, table: Table):
+    def __init__(self, body: Body, table: Table, holes=(), stop_when=None):
         require_x64()
         if not isinstance(body, Body):
             raise TypeError(f"body must be a jaxbill body (jb.PointBody, jb.Dumbbell, ...); got {type(body).__name__}")
@@ -142,10 +209,15 @@ class BodyInTable(eqx.Module):
                     "it touches flat walls only (jb.Strip, jb.Polygon)"
                 )
         self.body, self.table = body, table
+        self.holes = _hole_intervals(holes, body, table)
+        if stop_when is not None and not callable(stop_when):
+            raise ValueError(f"stop_when must be a function of a state's components, or None; got {stop_when!r}")
+        self.stop_when = stop_when
         if all(is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(self)):
             # The table's own parameters first: a circle of radius -1 is a bad R, not a body that cannot fit.
             self.table.check()
             self._check_fit()
+            self._check_holes()
 
     # -- parameters ---------------------------------------------------------------------
 
@@ -219,10 +291,24 @@ class BodyInTable(eqx.Module):
         return tuple(name for name in inspect.signature(init).parameters if name != "self")
 
     def check(self) -> None:
-        """Raise ValueError if the (possibly replaced) parameters are invalid or the body cannot fit."""
+        """Raise ValueError if the (possibly replaced) parameters are invalid, the body cannot fit, or a hole
+        runs past the end of the boundary."""
         self.body.check()
         self.table.check()
         self._check_fit()
+        self._check_holes()
+
+    def _check_holes(self) -> None:
+        """ValueError for a hole that ends beyond the perimeter (the table's parameters concrete)."""
+        if not self.holes:
+            return
+        perimeter = float(np.min(np.asarray(self.table.boundary_length)))
+        for low, high in self.holes:
+            if high > perimeter:
+                raise ValueError(
+                    f"holes: the hole ({low}, {high}) ends beyond the boundary of {self.table.name}, whose arc "
+                    f"length s runs over [0, {perimeter:.17g}]"
+                )
 
     @property
     def kind(self) -> str:
@@ -255,9 +341,21 @@ class BodyInTable(eqx.Module):
 
     @property
     def contact_codes(self) -> tuple[int, ...]:
-        """Every contact code a collision can have: none, several at once, and one per gap."""
+        """Every contact code a collision can have: the exit through a hole (with holes), none, several at once,
+        and one per gap."""
         several = (SEVERAL_CONTACTS,) if len(self._cornering) > 1 else ()
-        return (NO_CONTACT, *several, *self.gap_codes)
+        escape = (ESCAPE_CODE,) if self.holes else ()
+        return (*escape, NO_CONTACT, *several, *self.gap_codes)
+
+    @property
+    def escape_code(self) -> int | None:
+        """Static: the contact code of a collision through a hole (``ESCAPE_CODE``), ``None`` without holes."""
+        return ESCAPE_CODE if self.holes else None
+
+    @property
+    def stop_condition(self):
+        """Static: ``stop_when``, the condition on a state's components that ends an orbit (or ``None``)."""
+        return self.stop_when
 
     @property
     def batch_chunk(self) -> int:
@@ -481,7 +579,34 @@ class BodyInTable(eqx.Module):
         origin = self._origin(state)
         moved = self.flight_components(state, t)
         offsets = self._offsets(moved[2], constants)
-        return self.resolve(moved, index, offsets, origin)
+        kicked, contact = self.resolve(moved, index, offsets, origin)
+        if not self.holes:
+            return kicked, contact
+        # A point's contact point is its centre; the arc length is that of the wall it touches.
+        x, y = self._in_cell(moved, origin)[:2]
+        escaped = self._in_a_hole(x, y, index)
+        return tuple(jnp.where(escaped, a, b) for a, b in zip(moved, kicked)), jnp.where(
+            escaped, jnp.int32(ESCAPE_CODE), contact
+        )
+
+    def _in_a_hole(self, x, y, index):
+        """Whether the point ``(x, y)`` on wall ``index`` (a point's gap is its wall) lies in one of the holes.
+
+        Elementwise and without gathers: the arc length of every wall is
+        computed and the touched wall's chosen, so it runs in every driver.
+        """
+        table = self.table
+        s = jnp.zeros_like(x)
+        for i, piece in enumerate(table.pieces):
+            if type(piece).periodic:
+                continue  # a cell's side is crossed, never hit: no part of the boundary
+            s = jnp.where(index == i, table.boundary_coordinate(i, x, y), s)
+        s = jnp.mod(s, table.boundary_length)
+        on_boundary = functools.reduce(
+            jnp.logical_or, [index == i for i, piece in enumerate(table.pieces) if not type(piece).periodic]
+        )
+        inside = functools.reduce(jnp.logical_or, [(s >= low) & (s <= high) for low, high in self.holes])
+        return on_boundary & inside
 
     def resolve(self, state: tuple, index, offsets, origin=None):
         """The impulse(s) at a contact in gap ``index`` of ``state`` (components) on the wall: ``(state, contact)``.
