@@ -475,7 +475,7 @@ def draw_wall_flights(
 
     states = _np(orbit.state)
     n = len(states) if collisions is None else min(collisions, len(states))
-    short = jax.tree_util.tree_map(lambda a: np.asarray(a)[:n], orbit)
+    short = jax.tree.map(np.asarray, orbit.first(n))
     paths = flight_paths(scene, state0, short, points_per_flight)
     kappa = float(np.sqrt(float(scene.inertia) / float(scene.mass)))
     flat = paths.reshape(-1, 2)

@@ -238,3 +238,14 @@ def test_zero_collisions_finish_at_the_start(driver):
     np.testing.assert_array_equal(run.final_state, states)
     np.testing.assert_array_equal(run.result, [R.FINISHED] * 3)
     assert int(jb.orbit(scene, states[0], 0).result) == R.FINISHED
+
+
+def test_the_first_collisions_of_an_orbit_are_a_shorter_orbit_with_its_code():
+    """``Orbit.first(k)`` of an orbit (and of a batch) is the orbit run for ``k`` collisions, bit for bit, with
+    the result code it carries: for one orbit a scalar, for a batch one per orbit."""
+    scene = jb.StickInCircle(R=1.0, ell=0.6)
+    states = random_states(np.random.default_rng(5), 3, 1.0, 0.6, "rotor")
+    for start in (states[0], states):
+        short, long = jb.orbit(scene, start, 7), jb.orbit(scene, start, 30).first(7)
+        for name in ("t", "contact", "state", "result"):
+            np.testing.assert_array_equal(np.asarray(getattr(long, name)), np.asarray(getattr(short, name)))

@@ -50,6 +50,19 @@ class Orbit(eqx.Module):
     state: Float[Array, "*batch n S"]
     result: Int[Array, "*batch"]
 
+    def first(self, count: int) -> Orbit:
+        """The first ``count`` collisions of the orbit (of each orbit of a batch), its result code kept.
+
+        ``jax.tree.map(lambda a: a[:count], orbit)`` would cut the result code
+        too (a batch's orbits, or fail on one orbit's scalar code).
+        """
+        return Orbit(
+            t=self.t[..., :count],
+            contact=self.contact[..., :count],
+            state=self.state[..., :count, :],
+            result=self.result,
+        )
+
 
 def poison_if(bad, *arrays):
     """``arrays`` with NaN (floats) or 0 (integers) where ``bad``: how traced input too bad to run reports."""

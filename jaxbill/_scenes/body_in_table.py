@@ -85,7 +85,7 @@ def _scalar_fields(module) -> list:
 def _scalar(name: str, value) -> float:
     array = np.asarray(value)
     if array.ndim != 0:
-        raise ValueError(f"{name}: one scene has scalar parameters, not a batch (shape {array.shape})")
+        raise ValueError(f"{name}: one scene, not a batch: its parameters are scalars (shape {array.shape})")
     return float(array)
 
 
@@ -288,7 +288,9 @@ class BodyInTable(eqx.Module):
         init = type(self).__init__
         if init is BodyInTable.__init__:
             return None
-        return tuple(name for name in inspect.signature(init).parameters if name != "self")
+        # The numbers it is built from; a keyword-only argument (a static ``kind``) is a choice, not a parameter.
+        parameters = inspect.signature(init).parameters.values()
+        return tuple(p.name for p in parameters if p.name != "self" and p.kind is p.POSITIONAL_OR_KEYWORD)
 
     def check(self) -> None:
         """Raise ValueError if the (possibly replaced) parameters are invalid, the body cannot fit, or a hole
