@@ -535,7 +535,7 @@ def _walls_figures(settings: Settings, save, bar) -> list:
         fig = Figure(figsize=(15, 6.2), layout="constrained")
         axes = fig.subplots(1, 3)
         for ax, (scene, state0, orb, title) in zip(axes, panels):
-            one = type(orb)(t=np.asarray(orb.t)[0], contact=np.asarray(orb.contact)[0], state=np.asarray(orb.state)[0])
+            one = jax.tree.map(lambda leaf: np.asarray(leaf)[0], orb)  # the first orbit of the batch
             plotting.draw_wall_flights(ax, scene, state0, one, collisions=k)
             ax.set_title(title)
         fig.suptitle(
