@@ -12,6 +12,7 @@ first sign change of the gaps.
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -66,7 +67,20 @@ def _gap_derivatives(scene, state, times):
     first = jax.jacfwd(gaps_at)
     second = jax.jacfwd(first)
     third = jax.jacfwd(second)
-    return (jax.vmap(f)(times) for f in (gaps_at, first, second, third))
+    return tuple(jax.vmap(f)(times) for f in (gaps_at, first, second, third))
+
+
+# Compiled once per scene and reused for every flight (eager autodiff of every flight took most of this file's
+# time): the sampled derivatives and the search's own bounds and profile.
+_sampled_derivatives = eqx.filter_jit(
+    lambda scene, state, flight, samples: _gap_derivatives(scene, state, jnp.linspace(0.0, flight, samples))
+)
+_search = eqx.filter_jit(lambda scene, state: scene.root_search(components(state)))
+_gaps_between = eqx.filter_jit(
+    lambda scene, state, t_in, t_out, samples: jax.vmap(lambda t: scene.gaps(scene.flight(state, t)))(
+        jnp.linspace(t_in, t_out, samples)
+    )
+)
 
 
 @pytest.mark.parametrize("name", list(TURNING))
@@ -75,9 +89,8 @@ def test_curvature_and_jerk_bounds_hold_along_flights(name):
     starts, flights = _flights(scene)
     for state, flight in zip(starts, flights):
         state = jnp.asarray(state)
-        _, bounds = scene.root_search(components(state))
-        times = jnp.linspace(0.0, flight, SAMPLES)
-        _, _, curvature, jerk = _gap_derivatives(scene, state, times)
+        _, bounds = _search(scene, state)
+        _, _, curvature, jerk = _sampled_derivatives(scene, state, jnp.asarray(flight), SAMPLES)
         curvature, jerk = np.asarray(curvature), np.asarray(jerk)
         slack = 1e-9 * (float(bounds.lower_curv) + float(bounds.upper_curv))
         assert np.all(curvature >= -float(bounds.lower_curv) - slack), (name, curvature.min(), bounds.lower_curv)
@@ -93,9 +106,11 @@ def test_the_scenes_own_curvatures_are_the_gaps_second_derivatives(name):
     starts, flights = _flights(scene, count=4, seed=1)
     for state, flight in zip(starts, flights):
         state = jnp.asarray(state)
-        profile, _ = scene.root_search(components(state))
+        profile, _ = _search(scene, state)
         times = jnp.linspace(0.0, flight, 40)
-        gaps, slopes, curvature, _ = (np.asarray(v) for v in _gap_derivatives(scene, state, times))
+        gaps, slopes, curvature, _ = (
+            np.asarray(v) for v in _sampled_derivatives(scene, state, jnp.asarray(flight), 40)
+        )
         own = jax.vmap(lambda t: with_curvatures(scene.gaps_along_flight(profile, t)))(times)
         scale = float(scene.gap_scale)
         np.testing.assert_allclose(np.stack(own[0], -1), gaps, atol=1e-12 * scale)
@@ -110,13 +125,12 @@ def test_no_contact_inside_the_quiet_interval(name):
     states = jb.sample_energy_shell(scene, 40, seed=2)[0]
     checked = 0
     for state in states:
-        _, bounds = scene.root_search(components(jnp.asarray(state)))
+        _, bounds = _search(scene, jnp.asarray(state))
         t_in, t_out = float(bounds.quiet_in), float(bounds.quiet_out)
         if not (t_in < t_out and np.isfinite(t_out)):
             continue
         checked += 1
-        times = jnp.linspace(t_in, t_out, 200)
-        gaps = np.asarray(jax.vmap(lambda t: scene.gaps(scene.flight(jnp.asarray(state), t)))(times))
+        gaps = np.asarray(_gaps_between(scene, jnp.asarray(state), jnp.asarray(t_in), jnp.asarray(t_out), 200))
         assert np.all(gaps > 0.0), name
     if name not in ("coin between walls", "fast coin between walls", "dumbbell in a user's table"):
         assert checked >= 5, checked
@@ -132,7 +146,7 @@ def test_closed_form_contact_times_are_the_first_sign_change(name):
     for state, flight in zip(starts, flights):
         state = jnp.asarray(state)
         times = jnp.linspace(0.0, 1.5 * flight, 3001)
-        gaps = np.asarray(jax.vmap(lambda t: scene.gaps(scene.flight(state, t)))(times))
+        gaps = np.asarray(_gaps_between(scene, state, jnp.asarray(0.0), jnp.asarray(1.5 * flight), 3001))
         inside = np.all(gaps >= -1e-12 * float(scene.gap_scale), axis=-1)
         first_out = np.argmin(inside) if not inside.all() else len(times)
         step = float(times[1])
