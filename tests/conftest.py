@@ -31,9 +31,21 @@ import pytest  # noqa: E402
 LONGEST_FIRST = ("test_drivers.py", "test_notebooks.py")
 
 
+# Tests that read the built site or the API reference's hooks need the docs extra: they skip
+# without it, and .ci/run's second stage, with the extra, runs them alone (``-m docs_extra``).
+DOCS_EXTRA_FIXTURES = {"site", "hooks"}
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "docs_extra: needs the docs extra (mkdocs); marked by the fixtures it uses")
+
+
 def pytest_collection_modifyitems(items):
     rank = {name: position for position, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+    for item in items:
+        if DOCS_EXTRA_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.docs_extra)
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -55,6 +55,12 @@ def _load_hooks():
     return hooks
 
 
+@pytest.fixture(scope="module")
+def hooks():
+    """``docs/hooks.py``, loaded once (the docs extra)."""
+    return _load_hooks()
+
+
 def test_getting_started_python_blocks_run(tmp_path, monkeypatch, capsys):
     """Every python block of the getting-started page, run in order in one namespace, as a reader would."""
     blocks = _code_blocks(DOCS / "getting-started.md", "python")
@@ -166,8 +172,7 @@ def test_getting_started_commands_are_the_readmes():
     assert page.strip().splitlines()[:2] == readme.strip().splitlines()[:2]
 
 
-def test_every_public_name_has_a_documented_api_entry(caplog):
-    hooks = _load_hooks()
+def test_every_public_name_has_a_documented_api_entry(caplog, hooks):
     with caplog.at_level(logging.WARNING, logger="mkdocs.hooks.jaxbill"):
         pages = hooks.api_pages()
     assert not caplog.records, "\n".join(r.getMessage() for r in caplog.records)
@@ -177,8 +182,7 @@ def test_every_public_name_has_a_documented_api_entry(caplog):
     assert "::: jaxbill.plotting" in reference
 
 
-def test_a_public_name_without_a_docstring_is_a_warning(caplog, monkeypatch):
-    hooks = _load_hooks()
+def test_a_public_name_without_a_docstring_is_a_warning(caplog, monkeypatch, hooks):
 
     def undocumented():
         pass
@@ -316,19 +320,17 @@ def test_every_table_of_contents_entry_links_to_a_heading_on_its_page(site):
 SCENE_CLASSES = ("StickInCircle", "StickInEllipse", "StickBetweenWalls2D", "StickBetweenWalls3D")
 
 
-def test_engine_members_named_in_the_hooks_exist():
+def test_engine_members_named_in_the_hooks_exist(hooks):
     """``ENGINE_MEMBERS`` names no member that no scene has (a stale name would hide nothing)."""
-    hooks = _load_hooks()
     scenes = [getattr(jb, name) for name in SCENE_CLASSES]
     stale = [m for m in hooks.ENGINE_MEMBERS if not any(hasattr(cls, m) for cls in scenes)]
     assert not stale, stale
 
 
-def test_the_scenes_page_shows_the_user_s_members_and_the_scene_page_the_engine_s(site):
+def test_the_scenes_page_shows_the_user_s_members_and_the_scene_page_the_engine_s(site, hooks):
     """What a user calls is on the scenes page, typed; what the engine calls only on the page for adding a scene."""
     from jaxbill._scenes.protocols import Scene
 
-    hooks = _load_hooks()
     scenes = (site / "api" / "scenes" / "index.html").read_text()
     new_scene = (site / "how-to" / "new-scene" / "index.html").read_text()
     shown = set(re.findall(r'id="jaxbill\.(?:' + "|".join(SCENE_CLASSES) + r')\.(\w+)"', scenes))
@@ -359,10 +361,9 @@ BODIES_AND_TABLES = (
 )
 
 
-def test_the_bodies_page_shows_the_user_s_members_and_the_extending_page_the_scene_s(site):
+def test_the_bodies_page_shows_the_user_s_members_and_the_extending_page_the_scene_s(site, hooks):
     """A composed scene's page shows what a user calls, not what the engine calls; a body's or a table's shows
     none of its answers to the scene, which the bases on the page for extending show."""
-    hooks = _load_hooks()
     page = (site / "api" / "bodies" / "index.html").read_text()
     scene = set(re.findall(r'id="jaxbill\.BodyInTable\.(\w+)"', page))
     assert {"gaps", "energy", "section", "contact_points", "gap_codes"} <= scene, scene
