@@ -286,17 +286,30 @@ def pushed_frame(
         collision = advance_components(scene, start, orbit)
         return (collision.state, collision.dt), (collision.contact, collision.status)
 
-    (new_parts, dt), linear, (contact, status) = jax.linearize(
-        map_of_dynamical, tuple(parts[i] for i in indices), has_aux=True
-    )
+    primals = tuple(parts[i] for i in indices)
+
+    def projected(new_state, d_parts, d_time):
+        if flow:
+            velocity = cast(_Flows, scene).phase_velocity(new_state)
+            return jnp.stack([d_parts[i] - velocity[i] * d_time for i in indices])
+        return jnp.stack([d_parts[i] for i in indices])
+
+    if coefficients.shape[-1] == 1:
+        # One vector (FLI, MEGNO): a plain forward derivative. ``linearize`` would split every conditional of
+        # the collision into a primal and a linear one and copy the residuals between them, which costs more
+        # than the one vector's arithmetic; it pays where several vectors share the primal (the spectra).
+        column = tuple(coefficients[row, 0] for row in range(len(indices)))
+        (new_parts, dt), (d_parts, d_time), (contact, status) = jax.jvp(
+            map_of_dynamical, (primals,), (column,), has_aux=True
+        )
+        new_state = stacked(new_parts)
+        return PushedFrame(new_state, dt, contact, status, projected(new_state, d_parts, d_time)[:, None])
+    (new_parts, dt), linear, (contact, status) = jax.linearize(map_of_dynamical, primals, has_aux=True)
     new_state = stacked(new_parts)
-    velocity = cast(_Flows, scene).phase_velocity(new_state) if flow else None
 
     def push(column):
         d_parts, d_time = linear(tuple(column[row] for row in range(len(indices))))
-        if velocity is not None:
-            return jnp.stack([d_parts[i] - velocity[i] * d_time for i in indices])
-        return jnp.stack([d_parts[i] for i in indices])
+        return projected(new_state, d_parts, d_time)
 
     return PushedFrame(new_state, dt, contact, status, jax.vmap(push, in_axes=1, out_axes=1)(coefficients))
 
