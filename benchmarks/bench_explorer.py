@@ -40,7 +40,7 @@ from jaxbill._explorer import sample_clicks
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from interleaved import interleaved, load_average  # noqa: E402
+from interleaved import interleaved, jaxbill_source, load_average  # noqa: E402
 
 INF = float("inf")
 
@@ -124,7 +124,7 @@ def main(argv=None) -> None:
             "machine": platform.machine(),
             "logical_cpus": os.cpu_count(),
             "versions": {"python": platform.python_version(), "jax": jax.__version__, "jaxbill": jb.__version__},
-            "jaxbill_path": os.path.dirname(os.path.abspath(jb.__file__)),
+            "jaxbill_from": jaxbill_source(os.path.dirname(os.path.abspath(jb.__file__))),
             "load_average": {"start": load_at_start, "end": load_at_end},
             "rows": rows,
         }

@@ -34,7 +34,7 @@ import math
 import os
 import platform
 
-from interleaved import interleaved  # this script's folder, on sys.path when run
+from interleaved import interleaved, jaxbill_source  # this script's folder, on sys.path when run
 
 SCENES = [
     ("R=2 ell=1.9 I=M ell^2", 2.0, 1.9, None),
@@ -136,7 +136,7 @@ def main() -> None:
             "logical_cpus": os.cpu_count(),
             "jax_devices": len(jax.devices()),
             "versions": {"python": platform.python_version(), "jax": jax.__version__, "jaxbill": jb.__version__},
-            "jaxbill_path": os.path.dirname(os.path.abspath(jb.__file__)),
+            "jaxbill_from": jaxbill_source(os.path.dirname(os.path.abspath(jb.__file__))),
             "load_average": {"start": list(started_load), "end": list(os.getloadavg())},
             "rows": rows,
         }

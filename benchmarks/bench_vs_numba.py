@@ -111,7 +111,7 @@ import jaxbill as jb  # noqa: E402
 
 sys.path.insert(0, HERE)
 import numba_baseline as baseline  # noqa: E402
-from interleaved import interleaved, load_average  # noqa: E402
+from interleaved import interleaved, jaxbill_source, load_average  # noqa: E402
 
 # label -> params (numba_baseline layout); the orbit table runs all, the batch tables BATCH_SCENES.
 SCENES = {
@@ -378,7 +378,7 @@ def machine_description() -> dict:
             "numpy": np.__version__,
             "jaxbill_commit": commit,
         },
-        "jaxbill_path": package,
+        "jaxbill_from": jaxbill_source(package),
         "numba_threads": numba.config.NUMBA_NUM_THREADS,
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
     }

@@ -52,3 +52,11 @@ def load_average() -> str:
         return " ".join(f"{x:.2f}" for x in os.getloadavg())
     except OSError:
         return "n/a"
+
+
+def jaxbill_source(package_dir: str) -> str:
+    """Which jaxbill a record timed, without naming this machine's folders: ``"this checkout"`` when the
+    package imported is the one beside this script, else ``"another copy"`` (an install, a worktree)."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    same = os.path.realpath(package_dir) == os.path.realpath(os.path.join(here, "jaxbill"))
+    return "this checkout" if same else "another copy"
