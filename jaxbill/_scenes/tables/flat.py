@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,34 +21,7 @@ from jaxbill._engine.validation import check_parameter, real_parameter
 from jaxbill._scenes.tables.base import KICK_NORMAL_SQUARED, Motion, Piece, Table, band_crossing
 
 
-class FlatWall(Piece):
-    """What every straight wall shares (the module's docstring derives it): no curvature, so its bounds along
-    a flight come from the contact point's turn about the centre alone. A subclass gives ``scale`` (the gap's
-    unit per length) and ``unit`` (the table's gap unit) as fields."""
-
-    scale: eqx.AbstractVar[jax.Array | float]
-    unit: eqx.AbstractVar[jax.Array | float]
-
-    bounds_jerk: ClassVar[bool] = True
-    flat: ClassVar[bool] = True
-
-    def hessian_form(self, x, y, dx, dy):
-        return 0.0 * dx
-
-    @property
-    def gap_scale(self):
-        return self.unit
-
-    def curvature_bounds(self, motion: Motion):
-        turn = self.scale * (motion.omega * motion.omega) * motion.radius
-        return turn, turn
-
-    def jerk_bound(self, motion: Motion):
-        spin = jnp.abs(motion.omega)
-        return self.scale * (spin * spin * spin) * motion.radius
-
-
-class HalfPlane(FlatWall):
+class HalfPlane(Piece):
     """The flat wall ``n . P <= d``: ``n = (nx, ny)`` its unit outward normal, ``(sx, sy)`` a point on it (the
     origin of its arc length, which runs along ``(-ny, nx)``); the gap is ``scale (d - n . P)``, in units of
     ``unit``."""
@@ -65,6 +37,8 @@ class HalfPlane(FlatWall):
     side: jax.Array | float
 
     straight_exit: ClassVar[bool] = True
+    bounds_jerk: ClassVar[bool] = True
+    flat: ClassVar[bool] = True
 
     def gap(self, x, y):
         return self.scale * (self.d - (self.nx * x + self.ny * y))
@@ -72,6 +46,21 @@ class HalfPlane(FlatWall):
     def gradient(self, x, y):
         # Constants where the wall's parameters are: a Pallas kernel lowers no operation on a constant array.
         return -self.scale * self.nx, -self.scale * self.ny
+
+    def hessian_form(self, x, y, dx, dy):
+        return 0.0 * dx
+
+    @property
+    def gap_scale(self):
+        return self.unit
+
+    def curvature_bounds(self, motion: Motion):
+        turn = self.scale * (motion.omega * motion.omega) * motion.radius
+        return turn, turn
+
+    def jerk_bound(self, motion: Motion):
+        spin = jnp.abs(motion.omega)
+        return self.scale * (spin * spin * spin) * motion.radius
 
     def quiet_interval(self, motion: Motion):
         along = self.nx * motion.cx + self.ny * motion.cy
