@@ -300,3 +300,46 @@ def test_a_table_shrunk_under_its_holes_is_refused():
         scene.with_parameters(R=0.5)
     touching = jb.BodyInTable(jb.PointBody(), jb.Circle(1.0), holes=[(0.1, 0.5), (0.5, 0.9)])
     assert touching.holes == ((0.1, 0.5), (0.5, 0.9))  # sharing an end is no overlap
+
+
+def test_tangent_indicators_keep_the_values_of_an_orbits_last_reflection():
+    """After an orbit ends, its FLI, MEGNO and Lyapunov exponents are those of the same orbit in the closed
+    table after its last reflection: the collisions before a hole (the crossing is no reflection), or up to and
+    including the one that met the stopping condition. The closed table's histories, one checkpoint per
+    collision, give every truncation at once."""
+    plain = jb.BodyInTable(jb.PointBody(), jb.Sinai(0.25))
+    scene = jb.BodyInTable(jb.PointBody(), jb.Sinai(0.25), holes=SINAI_HOLES, stop_when=_stop_in_the_upper_half)
+    states = sinai_starts(scene, 40)
+    n = 12
+    closed = jb.orbit(plain, states, n)
+    s = np.asarray(plain.section(closed.state, closed.contact))[..., 0]
+    in_hole = np.any([(s >= low) & (s <= high) for low, high in SINAI_HOLES], axis=0)
+    condition = np.asarray(closed.state)[..., 1] > 0.3
+    first_hole = np.where(in_hole.any(-1), np.argmax(in_hole, -1), n)
+    first_stop = np.where(condition.any(-1), np.argmax(condition, -1), n)
+    reflections = np.where(first_hole <= first_stop, first_hole, np.minimum(first_stop + 1, n))
+    ended = reflections < n
+    before_any = reflections == 0  # through a hole at the first collision
+    assert np.sum(ended & ~before_any) >= 10 and 1 <= np.sum(before_any) <= 20
+    rows, last = np.arange(len(states))[~before_any], reflections[~before_any] - 1
+
+    fli_closed, fli_open = jb.fli(plain, states, n, n_history=n), jb.fli(scene, states, n)
+    fli_value = np.asarray(fli_open.value)
+    np.testing.assert_allclose(fli_value[~before_any], np.asarray(fli_closed.history)[rows, last], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(fli_open.time)[~before_any], np.asarray(fli_closed.times)[rows, last])
+    np.testing.assert_array_equal(fli_value[before_any], 0.0)  # the unit vector it started with
+    megno_closed, megno_open = jb.megno(plain, states, n, n_history=n), jb.megno(scene, states, n)
+    megno_value = np.asarray(megno_open.value)
+    np.testing.assert_allclose(megno_value[~before_any], np.asarray(megno_closed.history)[rows, last], rtol=1e-12)
+    np.testing.assert_array_equal(megno_value[before_any], 0.0)
+    spectrum_closed = jb.lyapunov_spectrum(plain, states, n, per="collision", n_history=n)
+    spectrum_open = jb.lyapunov_spectrum(scene, states, n, per="collision")
+    exponents = np.asarray(spectrum_open.exponents)
+    np.testing.assert_allclose(exponents[~before_any], np.asarray(spectrum_closed.history)[rows, last], rtol=1e-12)
+    assert np.all(np.isnan(exponents[before_any]))  # no reflection: no rate
+    np.testing.assert_array_equal(
+        spectrum_open.result, np.where(ended, np.where(first_hole <= first_stop, R.ESCAPED, R.STOPPED), R.FINISHED)
+    )
+    # The kernel's tangent vector would run on through the hole: the map refuses it by name.
+    with pytest.raises(ValueError, match="without holes or a stopping condition"):
+        jb.fli_map(scene, states[:2], n, driver="pallas")

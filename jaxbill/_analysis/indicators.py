@@ -69,8 +69,8 @@ from jaxtyping import Array, ArrayLike, Float, Int
 from jaxbill._engine import pallas
 from jaxbill._engine.collision import check_eagerly, poison_if
 from jaxbill._engine.drivers import map_over_orbits
-from jaxbill._engine.results import first_failure, start_result
-from jaxbill._engine.step import orbit_constants
+from jaxbill._engine.results import first_failure, kept_where, start_result, tangent_held
+from jaxbill._engine.step import orbit_constants, stops_orbits
 from jaxbill._engine.tangent import dynamical_size, pushed_frame, to_dynamical, to_state_space
 from jaxbill._engine.validation import (
     MAX_STORED_COUNT,
@@ -102,6 +102,8 @@ class FastLyapunovIndicator(eqx.Module):
         time: ``()`` elapsed flight time over the ``n`` collisions.
         result: ``()`` int32: why the orbit stopped, or what went wrong first
             (``jb.Result``; ``FINISHED`` when all went well).
+            An orbit that ended for good (``ESCAPED``, ``STOPPED``) keeps the
+            values of its last reflection (a crossing through a hole is none).
         n: number of collisions (static).
         per: ``"collision"`` or ``"time"``: the clock and tangent map used (static).
     """
@@ -134,6 +136,8 @@ class Megno(eqx.Module):
         time: ``()`` elapsed flight time over the ``n`` collisions.
         result: ``()`` int32: why the orbit stopped, or what went wrong first
             (``jb.Result``; ``FINISHED`` when all went well).
+            An orbit that ended for good (``ESCAPED``, ``STOPPED``) keeps the
+            values of its last reflection (a crossing through a hole is none).
         n: number of collisions (static).
         per: ``"collision"`` or ``"time"`` (static).
     """
@@ -214,12 +218,14 @@ def _indicators_one(scene, state0, tangent0, n, per, n_history):
     def collision(carry, _):
         state, v, t, k, sums, result = carry
         pushed = pushed_frame(scene, state, v[:, None], flow=flow, constants=constants)
-        v = pushed.frame[:, 0]
-        stretch = jnp.linalg.norm(v)
-        t, k = t + pushed.dt, k + 1
-        tau = t if flow else k.astype(jnp.float64)
-        sums = _accumulate(sums, jnp.log(stretch), tau)
-        return (pushed.state, v / stretch, t, k, sums, first_failure(result, pushed.status)), None
+        stretched = pushed.frame[:, 0]
+        stretch = jnp.linalg.norm(stretched)
+        tau = t + pushed.dt if flow else (k + 1).astype(jnp.float64)
+        values = (pushed.state, stretched / stretch, t + pushed.dt, k + 1, _accumulate(sums, jnp.log(stretch), tau))
+        if stops_orbits(scene):
+            # An orbit that ended (a hole, a stopping condition) keeps the indicators of its last reflection.
+            values = kept_where(tangent_held(result, pushed.status), (state, v, t, k, sums), values)
+        return (*values, first_failure(result, pushed.status)), None
 
     n_hist = max(1, min(n_history, n))
     stride = n // n_hist
@@ -440,7 +446,8 @@ def fli_map(
             ``"pallas"``: the tangent vector carried inside the Pallas kernel
             of the lane state machine (``jaxbill._engine.pallas.pallas_fli``; the
             same values to rounding; ``per="collision"`` and scenes whose
-            dynamical directions are state coordinates). ``None``: ``"pallas"``
+            dynamical directions are state coordinates, without holes or a
+            stopping condition). ``None``: ``"pallas"``
             on a GPU where it applies, else ``"autodiff"``. On a CPU the
             kernel runs in Pallas's interpreter (slow: for tests).
 
@@ -451,7 +458,8 @@ def fli_map(
     """
     if per not in PER:
         raise ValueError(f"per must be one of {PER}; got {per!r}")
-    kernel_applies = per == "collision" and hasattr(scene, "dynamical_indices")
+    # The kernel's tangent vector runs on through a hole; fli's scan keeps an ended orbit's values.
+    kernel_applies = per == "collision" and hasattr(scene, "dynamical_indices") and not stops_orbits(scene)
     if driver is None:
         driver = "pallas" if kernel_applies and jax.default_backend() != "cpu" else "autodiff"
     if driver not in ("autodiff", "pallas"):
@@ -459,7 +467,8 @@ def fli_map(
     if driver == "pallas" and not kernel_applies:
         raise ValueError(
             "driver='pallas' needs per='collision' and a scene whose dynamical directions are "
-            f"state coordinates ({type(scene).__name__} with per={per!r}: use driver='autodiff')"
+            f"state coordinates, without holes or a stopping condition ({type(scene).__name__} with "
+            f"per={per!r}: use driver='autodiff')"
         )
     n = check_count("n", n, 1, "number of collisions")
     chunk = check_count("chunk", chunk, 1, "pixels per compiled batch")

@@ -10,8 +10,8 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxbill._engine.collision import check_eagerly, poison_if
 from jaxbill._engine.drivers import map_over_orbits
-from jaxbill._engine.results import first_failure, start_result
-from jaxbill._engine.step import orbit_constants
+from jaxbill._engine.results import first_failure, has_stopped, kept_where, start_result, tangent_held
+from jaxbill._engine.step import orbit_constants, stops_orbits
 from jaxbill._engine.tangent import dynamical_size, pushed_frame
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
 from jaxbill._scenes.protocols import Scene
@@ -60,6 +60,9 @@ class LyapunovSpectrum(eqx.Module):
         time: ``()`` total elapsed time over the ``n`` collisions.
         result: ``()`` int32: why the orbit stopped, or what went wrong first
             (``jb.Result``; ``FINISHED`` when all went well).
+            An orbit that ended for good (``ESCAPED``, ``STOPPED``) keeps the
+            exponents of its reflections before its end (a crossing through a
+            hole is none), NaN when it ended before its first.
         n: number of collisions (static).
         per: ``"time"`` or ``"collision"`` (static).
         paired: whether the lower half of the spectrum is the upper half's
@@ -129,6 +132,10 @@ def _descending(values: jax.Array) -> jax.Array:
     return jnp.stack(rows, axis=-1)
 
 
+def _rate(logs, clock):
+    return jnp.where(clock > 0, logs / jnp.where(clock > 0, clock, 1), jnp.nan)
+
+
 def _with_partners(values: jax.Array, count: int) -> jax.Array:
     """``values`` ``(..., j)`` and the pairing partners ``-values`` of the first ``count``, ``(..., j + count)``
     (``_descending`` orders them)."""
@@ -142,22 +149,30 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
     def collision(carry, _):
         # The frame's coordinates in the dynamical directions at the current
         # state, carried to those at the next one (jaxbill._engine.tangent).
-        state, q, t, result = carry
+        state, q, t, count, result = carry
         pushed = pushed_frame(scene, state, q, flow=flow, constants=constants)
-        return (pushed.state, pushed.frame, t + pushed.dt, first_failure(result, pushed.status)), None
+        values = (pushed.state, pushed.frame, t + pushed.dt, count + 1)
+        if stops_orbits(scene):
+            # An orbit that ended (a hole, a stopping condition) keeps the frame of its last reflection.
+            values = kept_where(tangent_held(result, pushed.status), (state, q, t, count), values)
+        return (*values, first_failure(result, pushed.status)), None
 
     def qr_step(carry, _):
-        state, q, t, result, growth = carry
-        (state, q, t, result), _ = jax.lax.scan(collision, (state, q, t, result), None, length=qr_every)
+        state, q, t, count, result, growth = carry
+        (state, q, t, count, result), _ = jax.lax.scan(collision, (state, q, t, count, result), None, length=qr_every)
         q, diag = _orthonormalised(q)
-        return (state, q, t, result, grown(growth, diag)), None
+        stepped = (state, q, t, count, result, grown(growth, diag))
+        if stops_orbits(scene):
+            # Past its end the frame is held: no rounding of further factorisations enters its growth.
+            stepped = kept_where(has_stopped(carry[4]), carry, stepped)
+        return stepped, None
 
-    def qr_steps(carry, count):
-        """``count`` (static) QR steps; their growth, logged once, added to the logs."""
-        state, q, t, result, logs = carry
-        start = (state, q, t, result, no_growth(logs.shape))
-        (state, q, t, result, growth), _ = jax.lax.scan(qr_step, start, None, length=count)
-        return state, q, t, result, logs + log_of(growth)
+    def qr_steps(carry, steps):
+        """``steps`` (static) QR steps; their growth, logged once, added to the logs."""
+        state, q, t, count, result, logs = carry
+        start = (state, q, t, count, result, no_growth(logs.shape))
+        (state, q, t, count, result, growth), _ = jax.lax.scan(qr_step, start, None, length=steps)
+        return state, q, t, count, result, logs + log_of(growth)
 
     n_qr = n // qr_every
     n_hist = max(1, min(n_history, n_qr))
@@ -166,23 +181,23 @@ def _spectrum(scene, state0, n, per, qr_every, n_history, frame0, partners=0):
 
     def checkpoint(carry, _):
         carry = qr_steps(carry, stride)
-        _, _, t, _, logs = carry
-        return carry, (logs, t)
+        _, _, t, count, _, logs = carry
+        return carry, (logs, t, count)
 
     k = frame0.shape[1]
     valid = scene.is_valid(state0)
-    carry = (state0, frame0, jnp.zeros((), jnp.float64), start_result(valid), jnp.zeros((k,), jnp.float64))
-    carry, (logs_hist, t_hist) = jax.lax.scan(checkpoint, carry, None, length=n_hist)
+    time, count = jnp.zeros((), jnp.float64), jnp.zeros((), jnp.int32)
+    carry = (state0, frame0, time, count, start_result(valid), jnp.zeros((k,), jnp.float64))
+    carry, (logs_hist, t_hist, count_hist) = jax.lax.scan(checkpoint, carry, None, length=n_hist)
     if rest:
         carry = qr_steps(carry, rest)
-    _, _, t, result, logs = carry
+    _, _, t, count, result, logs = carry
     counts = (jnp.arange(1, n_hist + 1) * stride * qr_every).astype(jnp.int32)
-    if flow:
-        history = logs_hist / t_hist[:, None]
-        exponents = logs / t
-    else:
-        history = logs_hist / counts[:, None]
-        exponents = logs / n
+    # Per unit time, or per collision the frame went through (``counts`` and ``n``, or fewer for an orbit that
+    # ended); an orbit that ended before its first reflection has no rate: NaN.
+    clock_hist, clock = (t_hist, t) if flow else (count_hist, count)
+    history = _rate(logs_hist, clock_hist[:, None])
+    exponents = _rate(logs, clock)
     if partners:
         history, exponents = _with_partners(history, partners), _with_partners(exponents, partners)
     history = _descending(history)

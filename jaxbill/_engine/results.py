@@ -10,6 +10,7 @@ from __future__ import annotations
 import enum
 import functools
 
+import jax
 import jax.numpy as jnp
 
 
@@ -83,6 +84,18 @@ def collision_status(t, search_ended, refused=None):
 def has_stopped(result):
     """Whether orbits of ``result`` have ended for good (``STOPPING``): every later collision is held."""
     return functools.reduce(jnp.logical_or, [result == jnp.int32(code) for code in STOPPING])
+
+
+def tangent_held(result, status):
+    """Whether a tangent analysis keeps its values through a collision of ``status`` after ``result``: an orbit
+    that had ended for good (``STOPPING``), or one leaving through a hole now, whose crossing is no reflection
+    of the map (a stopping condition's collision is one, and counts)."""
+    return has_stopped(result) | (status == jnp.int32(Result.ESCAPED))
+
+
+def kept_where(held, old, new):
+    """``new``, or ``old`` where ``held``, leaf by leaf (for one orbit, ``held`` a scalar)."""
+    return jax.tree.map(lambda before, after: jnp.where(held, before, after), old, new)
 
 
 def first_failure(result, status, collided=None):
