@@ -128,9 +128,10 @@ def main():
     }
     print(
         "| scene | orbits | what | compile + first s | median s | collisions/s | ratio to numba CUDA "
-        "| root steps / collision |"
+        "| root steps / collision | agrees with numba CUDA |"
     )
-    print("|---|---:|---|---:|---:|---:|---:|---:|")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---|")
+    failures = 0
     if args.scenes:
         scenes = {k: v for k, v in scenes.items() if any(k.startswith(prefix) for prefix in args.scenes)}
     for label, params in scenes.items():
@@ -195,18 +196,83 @@ def main():
                 (f"{name} ({pallas_calls[-1]} calls)" if name.endswith("pallas") and pallas_calls else name, *times)
                 for name, *times in rows
             ]
+            finals = final_states_by_row(jb, scene)
             for name, first, median in rows:
                 ratio = f"{collisions / median / peer:.2f}" if peer else "n/a"
+                check = "n/a (no numba kernel)"
+                if params is not None:
+                    row_finals = next((f for prefix, f in finals.items() if name.startswith(prefix)), None)
+                    check = row_verdict(jb, scene, params, states, n, name, row_finals, cuda_baseline)
+                    failures += check.startswith("**FAIL")
                 print(
                     f"| {label} | {orbits} | {name} | {first:.2f} | {median:.4f} | {collisions / median:.3g} "
-                    f"| {ratio} | {steps:.2f} |",
+                    f"| {ratio} | {steps:.2f} | {check} |",
                     flush=True,
                 )
     try:
         fli_map_timing(jb, args.rounds)
     except Exception as error:  # reported at the end of the table
         print(f"FLI map failed: {type(error).__name__}: {str(error)[:400]}")
+    if failures:
+        print(f"\nFAIL: {failures} timed rows disagree with the numba CUDA kernel (the table's last column)")
+        return 1
     return 0
+
+
+def final_states_by_row(jb, scene):
+    """For each timed row (by its name's start): ``(states, collisions) -> (B, 6)`` the final states the
+    row's own call computes, for ``agreement``."""
+    from jaxbill._engine import pallas as _pallas
+
+    def run_with(**options):
+        return lambda states, n: jb.run(scene, states, n, progress=False, **options).final_state
+
+    def tangent_final(states, n):
+        padded = whole_blocks(states)
+        tangents = np.zeros_like(padded)
+        tangents[:, list(scene.dynamical_indices)] = 1.0 / np.sqrt(len(scene.dynamical_indices))
+        return np.asarray(_pallas.pallas_fli(scene, jax.numpy.asarray(padded), jax.numpy.asarray(tangents), n)[2])[
+            : len(states)
+        ]
+
+    return {
+        "jb.run final, pallas": run_with(driver="pallas"),
+        "jb.run final, lanes": run_with(driver="lanes"),
+        "jb.run final, lockstep": run_with(driver="lockstep"),
+        "jb.run states every 100": run_with(record="states", every=100),
+        "bare kernel": lambda states, n: np.asarray(bare_kernel(scene, states, n)())[: len(states)],
+        "jb.orbit": lambda states, n: np.asarray(jb.orbit(scene, states, n).state[:, -1]),
+        "tangent collisions": tangent_final,
+    }
+
+
+def row_verdict(jb, scene, params, states, n, name, row_finals, cuda_baseline):
+    """PASS or a loud FAIL (``agreement``) for one timed row; the contact sequences are checked once per
+    scene and batch, on the pallas row (``jb.orbit``'s, on a sample)."""
+    import agreement
+
+    if row_finals is None:
+        return "**FAIL**: no agreement check for this row"
+    if "lockstep" in name:  # about 30 s a call: its agreement is the drivers' tests'
+        return "n/a (drivers' tests)"
+
+    import numba_baseline as baseline
+
+    def numba_finals(states, n):
+        return cuda_baseline.run_batch_cuda(params, states, n)[0]
+
+    def contacts_of(states, n):
+        return jb.orbit(scene, states, n).contact
+
+    def numba_contacts(states, n):
+        return np.stack([baseline.orbit(params, state, n)[1] for state in states])
+
+    try:
+        contacts = (contacts_of, numba_contacts) if "pallas" in name else (None, None)
+        problems = agreement.disagreements(row_finals, numba_finals, states, n, *contacts)
+    except Exception as error:  # a check that cannot run is a failure, said as loudly
+        problems = [f"the check raised {type(error).__name__}: {str(error)[:200]}"]
+    return agreement.verdict(problems)
 
 
 def whole_blocks(states, block=None):

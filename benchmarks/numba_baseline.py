@@ -50,6 +50,8 @@ import types
 import numba
 import numpy as np
 
+from agreement import relative_difference  # this script's folder, on sys.path when run
+
 ROTOR, LENS, CIRCLE, WALLS_ROTOR, WALLS_STATIC, ROTOR_SHARPER = 0, 1, 2, 3, 4, 5
 KIND_NAMES = {
     ROTOR: "rotor",
@@ -806,14 +808,6 @@ CHECK_SCENES = {
 }
 
 
-def _relative_difference(a, b):
-    """Per collision: max over the state of ``|a - b| / max(1, |b|)``, angles compared modulo 2 pi."""
-    diff = np.abs(a - b)
-    angle = np.abs(np.remainder(a[..., 2] - b[..., 2] + np.pi, 2 * np.pi) - np.pi)
-    diff[..., 2] = angle
-    return np.max(diff / np.maximum(1.0, np.abs(b)), axis=-1)
-
-
 def jaxbill_root_steps(params, states_before):
     """Steps of jaxbill's own root search from each state ``(m, 6)`` (private API; 0 for closed forms).
 
@@ -847,7 +841,7 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
     * one step: numba's collision map applied to jaxbill's state before each
       collision, against jaxbill's state after it (the two implementations'
       own difference, free of chaotic growth): the largest relative state
-      difference (``_relative_difference``) and flight-time difference, whether
+      difference (``agreement.relative_difference``) and flight-time difference, whether
       the contact codes are the same, and the root steps per collision of each
       (jaxbill's counted with its private search);
     * orbits: the largest relative state difference of the two orbits run
@@ -883,7 +877,7 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
             before = np.concatenate([state0[None], ref_state[: collisions - 1]])
             ref_dt = np.diff(np.concatenate([[0.0], ref_t[:collisions]]))
             after, dt, contact, steps = collision_map(params, before)
-            state_diff = float(_relative_difference(after, ref_state[:collisions]).max())
+            state_diff = float(relative_difference(after, ref_state[:collisions]).max())
             row["step_state_diff"] = max(row["step_state_diff"], state_diff)
             row["step_time_diff"] = max(row["step_time_diff"], float((np.abs(dt - ref_dt) / np.abs(ref_dt)).max()))
             row["same_step_contacts"] &= bool(np.array_equal(contact, ref_contact[:collisions]))
@@ -891,7 +885,7 @@ def check_against_jaxbill(collisions=20, orbits=8, long_collisions=2000, seed=1,
             row["jaxbill_one_step_root_steps"] += int(jaxbill_root_steps(params, before).sum())
 
             _, contact, states, root_steps = orbit(params, state0, long_collisions)
-            diff = _relative_difference(states, ref_state)
+            diff = relative_difference(states, ref_state)
             row["orbit_state_diff"] = max(row["orbit_state_diff"], float(diff[:collisions].max()))
             row["same_orbit_contacts"] &= bool(np.array_equal(contact[:collisions], ref_contact[:collisions]))
             apart = np.nonzero((diff > 1e-6) | (contact != ref_contact))[0]

@@ -108,7 +108,7 @@ def check_against_cpu(orbits=4, collisions=30, seed=3, show=True):
         states0 = baseline.random_states(params, orbits, seed=seed)
         gpu = run_batch_cuda(params, states0, collisions, threads_per_block=min(THREADS_PER_BLOCK, orbits))
         cpu = baseline.run_batch(params, states0, collisions)
-        diff = float(baseline._relative_difference(gpu[0], cpu[0]).max())
+        diff = float(baseline.relative_difference(gpu[0], cpu[0]).max())
         same_counts = bool(np.array_equal(gpu[2], cpu[2]) and np.array_equal(gpu[3], cpu[3]))
         results[label] = (diff, same_counts)
         if show:
