@@ -20,6 +20,10 @@ kernel has no ellipse), for each batch size, in this one process:
   in the kernel, as ``jb.fli_map`` runs on a GPU), against the plain kernel;
 - a 1024 x 1024 FLI map of 1000 collisions (``jb.fli_map``) on the lens's section.
 
+The last column checks each row against the numba CUDA kernel from the same
+states (``agreement.py``): PASS, or FAIL with what disagreed, and the script then
+exits with status 1.
+
 Compile times are printed apart (the first call of each); timings are medians
 of ``--rounds`` calls in alternation. Ratios are collisions per second over
 the numba kernel's. Root steps per collision come from the numba kernel,
