@@ -22,6 +22,7 @@ import io
 import json
 import pathlib
 import re
+import tempfile
 import tokenize
 
 import pytest
@@ -34,8 +35,14 @@ PRIVATE_IMPORT = re.compile(
 )
 PRIVATE_NAME = re.compile(r"\bjaxbill\._\w")
 # how the project is run, or where its notes live: never the reader's business. The folder this
-# checkout lies in (where other checkouts and notes may lie) is read here, not written down.
-OUTSIDE = re.escape(str(ROOT.parent) + "/")
+# checkout lies in (where other checkouts and notes may lie) is read here, not written down; a folder
+# every machine shares (the root, the temporary folder, the home folders) names nothing of ours, and a
+# notebook may well write its scratch files there.
+SHARED_FOLDERS = {
+    pathlib.Path(folder).resolve() for folder in ("/", "/tmp", tempfile.gettempdir(), pathlib.Path.home(), "/home")
+}
+WHERE_WE_LIE = ROOT.parent.resolve()
+OUTSIDE = r"(?!)" if WHERE_WE_LIE in SHARED_FOLDERS else re.escape(str(WHERE_WE_LIE) + "/")
 PROCESS_WORDS = re.compile(
     r"\b[Ii]ssue\s*#?\d+|\b[Ii]tems?\s+\d+(?:\s*(?:,|and)\s*\d+)*\s+of\b|physics\.md|physics notes"
     rf"|{OUTSIDE}|\bsessions?\b"
@@ -193,11 +200,16 @@ def test_the_private_import_check_passes_public_ones(text):
         "(physics notes, *Averages*)",
         "items 3 and 4 of it",
         "this session",
-        f"see {ROOT.parent / 'notes' / 'plan.md'}",
     ],
 )
 def test_the_process_words_check_sees_them(text):
     assert PROCESS_WORDS.search(text)
+
+
+def test_the_folder_around_the_checkout_is_seen_unless_every_machine_has_it():
+    notes = f"see {WHERE_WE_LIE / 'notes' / 'plan.md'}"
+    assert bool(PROCESS_WORDS.search(notes)) == (WHERE_WE_LIE not in SHARED_FOLDERS)
+    assert not PROCESS_WORDS.search('small_stick_figure("/tmp/jaxbill_small_stick")')
 
 
 def test_the_process_words_check_leaves_science_alone():
