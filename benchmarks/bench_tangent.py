@@ -18,6 +18,13 @@ batch) for
   pairing partners, ``lyapunov_spectrum(..., paired=True)``: what
   ``lyapunov_spectrum`` runs by default for these scenes,
 
+and a second table, the chaos indicators a user calls, for every kind of scene
+(the spinning stick, the lens, the stick between walls, the stick in an ellipse,
+a triangle in a stadium): collisions per second of ``jb.run`` (final states, the
+plain rate) beside ``jb.fli``, ``jb.fli_map`` (the same starts as a map),
+``jb.megno`` and ``jb.lyapunov_spectrum`` (its default, counted per tangent
+vector it carries), each as a ratio to the plain rate;
+
 with the compile time (first call minus a steady run) apart ("cached" when a
 scene of the same kind compiled it already) and the steady rate the median of
 several rounds that alternate the four runs. Nothing asserts on timings.
@@ -118,6 +125,7 @@ def main() -> None:
                 "paired_over_spectrum": r_pair / r_spec,
             }
         )
+    indicator_rows = indicators_beside_run(jb, jnp, args, n_plain, n_tangent)
     if args.results != "none":
         path = args.results or os.path.join(
             os.path.dirname(os.path.abspath(__file__)),
@@ -139,11 +147,62 @@ def main() -> None:
             "jaxbill_from": jaxbill_source(os.path.dirname(os.path.abspath(jb.__file__))),
             "load_average": {"start": list(started_load), "end": list(os.getloadavg())},
             "rows": rows,
+            "indicator_rows": indicator_rows,
         }
         with open(path, "w") as f:
             json.dump(report, f, indent=1)
             f.write("\n")
         print(f"\nwrote {path}")
+
+
+def indicator_scenes(jb):
+    return {
+        "spinning stick, ell=1.9": jb.StickInCircle(2.0, 1.9),
+        "spinning stick, ell=1.0": jb.StickInCircle(2.0, 1.0),
+        "static lens, ell=1.5": jb.StickInCircle(2.0, 1.5, inertia=math.inf),
+        "stick between walls, h=3 ell=1": jb.StickBetweenWalls2D(3.0, 1.0),
+        "stick in an ellipse 2 x 1.4, ell=0.5": jb.StickInEllipse(2.0, 1.4, 0.5),
+        "triangle in a stadium": jb.BodyInTable(
+            jb.PolygonBody([(0.3, 0.0), (-0.15, 0.26), (-0.15, -0.26)]), jb.Stadium(1.0, 1.0)
+        ),
+    }
+
+
+def indicators_beside_run(jb, jnp, args, n_plain, n_tangent):
+    """The indicators' collisions per second beside ``jb.run``'s, one scene after another, interleaved."""
+    import jax
+
+    print(
+        "\n| scene | jb.run (coll/s) | fli | fli_map | megno | spectrum, per vector "
+        "| ratios to jb.run (fli / fli_map / megno / spectrum per vector) |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    rows = []
+    for label, scene in indicator_scenes(jb).items():
+        states = jnp.asarray(jb.sample_energy_shell(scene, args.batch, energy=0.5, seed=0)[0])
+        vectors = int(jax.block_until_ready(jb.lyapunov_spectrum(scene, states[0], 2).exponents).shape[-1])
+        paired = bool(jb.lyapunov_spectrum(scene, states[0], 2).paired)
+        carried = vectors // 2 if paired else vectors
+        runs = {
+            "run": lambda: jb.run(scene, states, n_plain, progress=False).final_state,
+            "fli": lambda: jb.fli(scene, states, n_tangent, n_history=1).value,
+            "fli_map": lambda: jb.fli_map(scene, states, n_tangent),
+            "megno": lambda: jb.megno(scene, states, n_tangent, n_history=1).value,
+            "spectrum": lambda: jb.lyapunov_spectrum(scene, states, n_tangent, n_history=1).exponents,
+        }
+        timings = interleaved(
+            {name: lambda run=run: jax.block_until_ready(run()) for name, run in runs.items()}, args.repeats
+        )
+        rate = {name: args.batch * (n_plain if name == "run" else n_tangent) / t.median for name, t in timings.items()}
+        rate["spectrum"] *= carried  # tangent vectors carried, each a collision's worth of tangent work
+        ratios = {name: rate[name] / rate["run"] for name in runs if name != "run"}
+        print(
+            f"| {label} | {rate['run']:.3g} | {rate['fli']:.3g} | {rate['fli_map']:.3g} | {rate['megno']:.3g} "
+            f"| {rate['spectrum']:.3g} ({carried} vectors) | " + " / ".join(f"{r:.2f}" for r in ratios.values()) + " |",
+            flush=True,
+        )
+        rows.append({"scene": label, "vectors_carried": carried, "rates": rate, "over_run": ratios})
+    return rows
 
 
 if __name__ == "__main__":
