@@ -174,21 +174,27 @@ def sinai_starts(scene, count, seed=5):
 SINAI_HOLES = [(1.2, 1.8), (4.3, 4.8)]
 
 
-def test_every_driver_ends_the_same_orbits_at_the_same_collision():
-    """Each orbit ends where the same orbit in the closed table first hits a hole (its Birkhoff ``s``) or first
-    satisfies the condition, whichever comes first, with the same code, time and counts in every driver."""
+def sinai_with_holes_and_a_condition(count=40, n=12):
+    """The closed Sinai table, the same table with ``SINAI_HOLES`` and the stopping condition, ``count`` starts,
+    and, from the closed table's orbits of ``n`` collisions: the closed orbits, and per start the index of the
+    first collision in a hole and of the first that meets the condition (``n``: none)."""
     plain = jb.BodyInTable(jb.PointBody(), jb.Sinai(0.25))
     scene = jb.BodyInTable(jb.PointBody(), jb.Sinai(0.25), holes=SINAI_HOLES, stop_when=_stop_in_the_upper_half)
-    states = sinai_starts(scene, 40)
-    n = 12
+    states = sinai_starts(scene, count)
     closed = jb.orbit(plain, states, n)
     s = np.asarray(plain.section(closed.state, closed.contact))[..., 0]
-    in_hole = np.zeros(s.shape, bool)
-    for low, high in SINAI_HOLES:
-        in_hole |= (s >= low) & (s <= high)
+    in_hole = np.any([(s >= low) & (s <= high) for low, high in SINAI_HOLES], axis=0)
     condition = np.asarray(closed.state)[..., 1] > 0.3
     first_hole = np.where(in_hole.any(-1), np.argmax(in_hole, -1), n)
     first_stop = np.where(condition.any(-1), np.argmax(condition, -1), n)
+    return plain, scene, states, closed, first_hole, first_stop
+
+
+def test_every_driver_ends_the_same_orbits_at_the_same_collision():
+    """Each orbit ends where the same orbit in the closed table first hits a hole (its Birkhoff ``s``) or first
+    satisfies the condition, whichever comes first, with the same code, time and counts in every driver."""
+    n = 12
+    _, scene, states, closed, first_hole, first_stop = sinai_with_holes_and_a_condition(n=n)
     escapes = first_hole <= first_stop  # a hole is checked before the condition
     last = np.minimum(first_hole, first_stop)
     expected = np.where(last == n, R.FINISHED, np.where(escapes, R.ESCAPED, R.STOPPED))
@@ -307,16 +313,8 @@ def test_tangent_indicators_keep_the_values_of_an_orbits_last_reflection():
     table after its last reflection: the collisions before a hole (the crossing is no reflection), or up to and
     including the one that met the stopping condition. The closed table's histories, one checkpoint per
     collision, give every truncation at once."""
-    plain = jb.BodyInTable(jb.PointBody(), jb.Sinai(0.25))
-    scene = jb.BodyInTable(jb.PointBody(), jb.Sinai(0.25), holes=SINAI_HOLES, stop_when=_stop_in_the_upper_half)
-    states = sinai_starts(scene, 40)
     n = 12
-    closed = jb.orbit(plain, states, n)
-    s = np.asarray(plain.section(closed.state, closed.contact))[..., 0]
-    in_hole = np.any([(s >= low) & (s <= high) for low, high in SINAI_HOLES], axis=0)
-    condition = np.asarray(closed.state)[..., 1] > 0.3
-    first_hole = np.where(in_hole.any(-1), np.argmax(in_hole, -1), n)
-    first_stop = np.where(condition.any(-1), np.argmax(condition, -1), n)
+    plain, scene, states, _, first_hole, first_stop = sinai_with_holes_and_a_condition(n=n)
     reflections = np.where(first_hole <= first_stop, first_hole, np.minimum(first_stop + 1, n))
     ended = reflections < n
     before_any = reflections == 0  # through a hole at the first collision
