@@ -201,7 +201,7 @@ def indicators_beside_run(jb, jnp, args, n_plain, n_tangent):
             f"| {rate['spectrum']:.3g} ({carried} vectors) | " + " / ".join(f"{r:.2f}" for r in ratios.values()) + " |",
             flush=True,
         )
-        rows.append({"scene": label, "vectors_carried": carried, "rates": rate, "over_run": ratios})
+        rows.append({"scene": label, "vectors_carried": carried, "rates": rate, "ratio_to_run": ratios})
     return rows
 
 
