@@ -261,7 +261,7 @@ def draw_reduced_bounds(
     bounds = _np(reduced_section_bounds(scene, s, energy, angular_momentum))
     ax.plot(s, bounds[:, 0], color=color, lw=0.8)
     ax.plot(s, bounds[:, 1], color=color, lw=0.8)
-    if scene.kind != "circle":
+    if not scene.body_is_point:
         corner = 2.0 * float(scene.R) * float(half_corner_angle(scene))
         ax.axvline(corner, color=color, lw=0.6, ls=":")
     ax.set_xlim(0.0, length)
@@ -304,7 +304,7 @@ def draw_spiral_column(
         state0, orbit: one orbit and its initial state.
         collisions: how many collisions to draw (default all).
     """
-    if scene.kind != "rotor":
+    if not scene.body_turns:
         raise ValueError("the spiral column needs a finite inertia and ell > 0 (the stick must turn)")
     states = _np(orbit.state)
     n = len(states) if collisions is None else min(collisions, len(states))

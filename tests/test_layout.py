@@ -162,6 +162,33 @@ def test_no_private_name_crosses_a_module():
     assert not private_imports(imports), sorted(private_imports(imports))
 
 
+def kind_readings(source: str) -> list[int]:
+    """The lines of ``source`` that read a scene through its ``kind`` string (``scene.kind == "rotor"``,
+    ``{...}[scene.kind]``) where a declared capability (``body_turns``, ``body_is_point``) says what it means."""
+
+    def scene_kind(node) -> bool:
+        return isinstance(node, ast.Attribute) and node.attr == "kind" and "scene" in ast.unparse(node.value)
+
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            if any(scene_kind(side) for side in sides) and any(
+                isinstance(side, ast.Constant) and isinstance(side.value, str) for side in sides
+            ):
+                lines.append(node.lineno)
+        elif isinstance(node, ast.Subscript) and scene_kind(node.slice):
+            lines.append(node.lineno)
+    return lines
+
+
+def test_above_the_scenes_nothing_reads_a_kind_string():
+    """The analyses, checks, runs and pictures ask a scene what its body does, not which kind it is."""
+    above = {name: path for name, path in MODULES.items() if _layer_of(name) not in ("_engine", "_scenes")}
+    found = {name: kind_readings(path.read_text()) for name, path in above.items()}
+    assert not {name: lines for name, lines in found.items() if lines}
+
+
 def test_each_rule_fails_on_a_violation():
     """Each rule, on a synthetic package that breaks it."""
     assert layer_violations({"jaxbill._engine.step": {"jaxbill._scenes.protocols"}})  # up
@@ -173,6 +200,9 @@ def test_each_rule_fails_on_a_violation():
     assert private_imports({"jaxbill._analysis.chaos": {("jaxbill._engine.collision", "_poison")}})
     assert not private_imports({"jaxbill.cli": {("jaxbill", "__version__"), ("jaxbill._engine.collision", "orbit")}})
     assert find_cycle({"jaxbill": {"jaxbill.studies.arnold_web"}, "jaxbill.studies.arnold_web": {"jaxbill"}})
+    assert kind_readings('if scene.kind == "rotor":\n    pass') == [1]
+    assert kind_readings('size = {"rotor": 4, "lens": 3}[scene.kind]') == [1]
+    assert not kind_readings('if scene.body_turns and record.kind == "final":\n    pass')
 
 
 def test_the_cycle_finder_finds_cycles():

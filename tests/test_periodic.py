@@ -194,3 +194,23 @@ def test_find_periodic_orbit_input_checks():
         find_periodic_orbit(scene, jnp.asarray([0, 0, 0, 1.0, 0, 0]), 2, angular_momentum=0.0)
     with pytest.raises(ValueError, match="parameter"):
         continue_periodic_orbit(scene, None, "length", [1.0])
+
+
+def test_scenes_say_whether_their_body_turns_or_is_a_point():
+    """What periodic-orbit search and the pictures ask instead of a scene's kind: a stick of finite inertia
+    turns, one of infinite inertia (the lens, a static stick between walls) does not, a point has no
+    orientation at all."""
+    inf = float("inf")
+    declared = {
+        "spinning stick": (jb.StickInCircle(2.0, 1.9), (True, False)),
+        "lens": (jb.StickInCircle(2.0, 1.5, inertia=inf), (False, False)),
+        "circle billiard": (jb.StickInCircle(2.0, 0.0), (False, True)),
+        "stick in an ellipse": (jb.StickInEllipse(2.0, 1.4, 0.5), (True, False)),
+        "walls 2D": (jb.StickBetweenWalls2D(3.0, 1.0), (True, False)),
+        "static walls 2D": (jb.StickBetweenWalls2D(3.0, 1.0, inertia=inf), (False, False)),
+        "walls 3D": (jb.StickBetweenWalls3D(3.0, 1.0), (True, False)),
+        "static walls 3D": (jb.StickBetweenWalls3D(3.0, 1.0, inertia=inf), (False, False)),
+        "point in a stadium": (jb.BodyInTable(jb.PointBody(), jb.Stadium(1.0, 1.0)), (False, True)),
+    }
+    for name, (scene, expected) in declared.items():
+        assert (scene.body_turns, scene.body_is_point) == expected, name

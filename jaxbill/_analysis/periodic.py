@@ -131,21 +131,23 @@ def _rotate(vec, angle):
 
 
 def reduced_size(scene: StickInCircle) -> int:
-    """Number of reduced section coordinates: 4 (rotor), 3 (lens), 2 (circle)."""
-    return {"rotor": 4, "lens": 3, "circle": 2}[scene.kind]
+    """Number of reduced section coordinates: 4 (a turning stick), 3 (one that never turns), 2 (a point)."""
+    return 2 + int(not scene.body_is_point) + int(scene.body_turns)
 
 
 def _full_z(scene, z):
-    """``(beta, w_r, w_t, omega)`` from the reduced coordinates of any kind."""
-    if scene.kind == "rotor":
+    """``(beta, w_r, w_t, omega)`` from the reduced coordinates of any body."""
+    if scene.body_turns:
         return z
-    if scene.kind == "lens":
+    if not scene.body_is_point:
         return jnp.concatenate([z, jnp.zeros((1,), z.dtype)])
     return jnp.concatenate([jnp.zeros((1,), z.dtype), z, jnp.zeros((1,), z.dtype)])
 
 
 def _short_z(scene, z4):
-    return {"rotor": z4, "lens": z4[:3], "circle": z4[1:3]}[scene.kind]
+    if scene.body_turns:
+        return z4
+    return z4[1:3] if scene.body_is_point else z4[:3]
 
 
 def reduced_state(scene: StickInCircle, z: jax.Array, phi: ArrayLike = 0.0) -> jax.Array:
@@ -204,16 +206,16 @@ class _Problem(eqx.Module):
 
     def scales(self):
         speed = jnp.sqrt(2.0 * self.energy / self.scene.mass)
-        if self.scene.kind == "rotor":
+        if self.scene.body_turns:
             spin = jnp.sqrt(2.0 * self.energy / self.scene.inertia)
             return jnp.stack([jnp.ones(()), speed, speed, spin])
-        if self.scene.kind == "lens":
+        if not self.scene.body_is_point:
             return jnp.stack([jnp.ones(()), speed, speed])
         return jnp.stack([speed, speed])
 
     def momentum_scale(self):
         scene = self.scene
-        inertia = scene.inertia if scene.kind == "rotor" else 0.0
+        inertia = scene.inertia if scene.body_turns else 0.0
         return jnp.sqrt(2.0 * self.energy * (scene.mass * scene.R**2 + inertia))
 
     def z(self, zeta):
@@ -230,7 +232,7 @@ class _Problem(eqx.Module):
     def residual_from(self, z, z_p, phi_p, s0):
         scene = self.scene
         diff = (z_p - z) / self.scales()
-        if scene.kind != "circle":
+        if not scene.body_is_point:
             diff = diff.at[0].set(_wrap(z_p[0] - z[0]))
         parts = [diff, ((scene.energy(s0) - self.energy) / self.energy)[None]]
         if self.pin_l:
@@ -302,7 +304,7 @@ class PeriodicOrbit(eqx.Module):
 
 def _monodromy(scene, z, jac_top, parabolic_tol):
     """Nontrivial multipliers from the Jacobian of the reduced ``p``-map at the fixed point ``z``."""
-    if scene.kind == "circle":
+    if scene.body_is_point:
         one = jnp.ones((), jnp.complex128)
         multipliers = jnp.stack([one, one])
         trace = jnp.asarray(2.0)
@@ -312,7 +314,7 @@ def _monodromy(scene, z, jac_top, parabolic_tol):
         def invariants(z_):
             s = reduced_state(scene, z_, 0.0)
             out = [scene.energy(s)]
-            if scene.kind == "rotor":
+            if scene.body_turns:
                 out.append(scene.angular_momentum(s))
             return jnp.stack(out)
 
@@ -637,7 +639,7 @@ def _targets(scene, guess, energy, angular_momentum, rotation):
     if symmetry != "rotation":
         return _TARGETS[symmetry](scene, guess, e, angular_momentum, rotation)
     pin_rotation = rotation is not None
-    if scene.kind == "rotor":
+    if scene.body_turns:
         pin_l = (angular_momentum is not None) or not pin_rotation
     else:
         if angular_momentum is not None:
@@ -656,7 +658,7 @@ def _targets(scene, guess, energy, angular_momentum, rotation):
 
 
 def _walls_targets(scene, guess, e, angular_momentum, rotation):
-    turning_3d = walls_orbits.is_3d(scene) and scene.kind == "rotor"
+    turning_3d = walls_orbits.is_3d(scene) and scene.body_turns
     if turning_3d:
         pin_rotation = rotation is not None
         pin_l = (angular_momentum is not None) or not pin_rotation
@@ -877,11 +879,11 @@ def continue_periodic_orbit(
         )
     if parameter not in ("ell", "R", "mass", "inertia"):
         raise ValueError(f"parameter must be 'ell', 'R', 'mass' or 'inertia'; got {parameter!r}")
-    if parameter == "inertia" and scene.kind != "rotor":
+    if parameter == "inertia" and not scene.body_turns:
         raise ValueError("parameter 'inertia' can be continued only for a spinning stick (finite inertia)")
     p = orbit.p
     pin_rotation = rotation is not None
-    pin_l = scene.kind == "rotor" and not pin_rotation
+    pin_l = scene.body_turns and not pin_rotation
     theta = jnp.asarray(0.0 if rotation is None else rotation, jnp.float64)
     e = jnp.asarray(orbit.energy)
     l0 = jnp.asarray(orbit.angular_momentum) if pin_l else jnp.zeros(())
@@ -906,7 +908,7 @@ def _with_parameter(scene, parameter, value):
     values = {name: float(getattr(scene, name)) for name in ("R", "ell", "mass", "inertia")}
     values[parameter] = float(value)
     checked = type(scene)(**values)  # raises ValueError out of range
-    if checked.kind != scene.kind:
+    if (checked.body_turns, checked.body_is_point) != (scene.body_turns, scene.body_is_point):
         raise ValueError(f"{parameter} = {float(value)} changes the kind of scene ({scene.kind} -> {checked.kind})")
     return eqx.tree_at(lambda s: getattr(s, parameter), scene, jnp.asarray(value, jnp.float64))
 

@@ -682,7 +682,7 @@ def check_walls(
         raise ValueError(f"local must be 'restart' or 'none', not {local!r}")
     scene.check()
     reference = _orbit(scene, state0, n)  # also validates state0 eagerly
-    frozen = scene.kind == "static"
+    frozen = not scene.body_turns
     h, ell, mass = (float(v) for v in (scene.h, scene.ell, scene.mass))
     inertia = 1.0 if frozen else float(scene.inertia)
     params = (h, ell, mass, inertia, frozen)

@@ -318,6 +318,16 @@ class BodyInTable(eqx.Module):
         return self.body.kind
 
     @property
+    def body_turns(self) -> bool:
+        """Static: the body turns (finite inertia, not a point): its spin is a coordinate of the dynamics."""
+        return self.body.kind == "rotor"
+
+    @property
+    def body_is_point(self) -> bool:
+        """Static: the body is a point, with no orientation."""
+        return self.body.kind == "point"
+
+    @property
     def mass(self) -> jax.Array:
         return self.body.mass
 

@@ -236,13 +236,24 @@ PERIODIC_SYMMETRIES = ("rotation", "translation", "none")
 class HasPeriodicSymmetry(Protocol):
     """A scene ``find_periodic_orbit`` can search: the symmetry its solver divides out.
 
-    ``periodic_symmetry`` is one of ``PERIODIC_SYMMETRIES``;
+    ``periodic_symmetry`` is one of ``PERIODIC_SYMMETRIES``; ``body_turns`` and
+    ``body_is_point`` say which coordinates its orbits have (a spin, an orientation);
     ``jaxbill._analysis.periodic`` keeps one solver per symmetry (not per scene). The
     solver for "none" asks the scene only for its collision map, energy, gaps
     and ``section`` (the ``HasSection`` points it reports).
     """
 
     periodic_symmetry: ClassVar[str]
+
+    @property
+    def body_turns(self) -> bool:
+        """Static: the body turns (its spin a coordinate; an angular momentum to pin where it is conserved)."""
+        ...
+
+    @property
+    def body_is_point(self) -> bool:
+        """Static: the body is a point, with no orientation among the coordinates."""
+        ...
 
 
 class HasSymplecticFlow(Protocol):

@@ -81,6 +81,16 @@ class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
     # -- engine interface (jaxbill._scenes.protocols) --------------------------------------
 
     @property
+    def body_turns(self) -> bool:
+        """Static: the stick turns (finite inertia): its spin is a coordinate of the dynamics."""
+        return self.kind == "rotor"
+
+    @property
+    def body_is_point(self) -> bool:
+        """Static: never; a stick has an orientation."""
+        return False
+
+    @property
     def batch_chunk(self) -> int:
         return walls.batch_chunk(self.kind)
 
