@@ -18,9 +18,11 @@ from both walls, so the search jumps over that stretch of the flight.
 
 from __future__ import annotations
 
+import abc
 import math
 from typing import ClassVar
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -242,26 +244,46 @@ def end_sign(gap: jax.Array) -> jax.Array:
     return jnp.where((gap == 0) | (gap == 2), 1.0, -1.0)
 
 
-class WallsEngine:
+class WallsEngine(eqx.Module):
     """The engine's questions (``jaxbill._engine.step``), the same for the stick between walls in 2D and 3D.
 
-    The scene provides ``kind``, ``vertical_profile``, ``end_gaps``,
-    ``end_approach_speeds`` (or both at once, ``end_gaps_and_speeds``) and
-    ``kick`` on components, and ``moved(state, t)``:
-    the free flight to ``t`` (renormalised where the state has constraints).
+    An abstract module: the scene answers ``body_turns``, ``vertical_profile``,
+    ``end_gaps``, ``end_approach_speeds`` and ``moved(state, t)`` (the free
+    flight to ``t``, renormalised where the state has constraints) on
+    components, and ``kick``; it may answer ``end_gaps_and_speeds`` at once.
     """
 
-    kind: str  # declared for type checkers; the scene's own (static) field
     contact_codes: ClassVar[tuple[int, ...]] = CONTACT_CODES
+
+    @property
+    @abc.abstractmethod
+    def body_turns(self) -> bool:
+        """Static: the stick turns (finite inertia)."""
+
+    @abc.abstractmethod
+    def vertical_profile(self, state: tuple):
+        """The flight's end heights as sinusoids in time (``search_bounds`` reads their bounds)."""
+
+    @abc.abstractmethod
+    def end_gaps(self, state: tuple) -> tuple:
+        """The four gaps of the components (each end to each wall)."""
+
+    @abc.abstractmethod
+    def end_approach_speeds(self, state: tuple) -> tuple:
+        """The four gaps' rates of closing."""
+
+    @abc.abstractmethod
+    def moved(self, state: tuple, t) -> tuple:
+        """The free flight of the components to time ``t``."""
 
     @property
     def searches_for_roots(self) -> bool:
         """A turning stick's end heights are sinusoids; a static one's are lines (closed form)."""
-        return self.kind == "rotor"
+        return self.body_turns
 
     def root_search(self, state: tuple):
         """``(vertical profile, RootBounds)`` of the flight from ``state``."""
-        profile = self.vertical_profile(state)  # type: ignore[attr-defined]
+        profile = self.vertical_profile(state)
         return profile, search_bounds(profile)
 
     def gaps_along_flight(self, profile, t: jax.Array):
@@ -275,11 +297,11 @@ class WallsEngine:
     def end_gaps_and_speeds(self, state: tuple) -> tuple:
         """``(end_gaps, end_approach_speeds)`` of the components; a scene whose two share work computes them
         together (2D: one cosine and sine of ``theta``, where each took its own)."""
-        return self.end_gaps(state), self.end_approach_speeds(state)  # type: ignore[attr-defined]
+        return self.end_gaps(state), self.end_approach_speeds(state)
 
     def collide_at(self, state: tuple, t: jax.Array, index: jax.Array, constants: None = None):
         """The flight to ``t`` and the impulse(s) of gap ``index`` (see ``resolve_contact``)."""
-        return resolve_contact(self, self.moved(state, t), index)  # type: ignore[attr-defined]
+        return resolve_contact(self, self.moved(state, t), index)
 
 
 def state_is_inside(scene, state) -> jax.Array:

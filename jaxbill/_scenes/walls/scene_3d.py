@@ -43,7 +43,7 @@ from jaxbill._scenes.walls.sections import floor_state, reduced_wall_section
 UNIT_TOLERANCE = 1e-10
 
 
-class StickBetweenWalls3D(walls.WallsEngine, eqx.Module):
+class StickBetweenWalls3D(walls.WallsEngine):
     """A stick of half-length ``ell`` bouncing between the planes ``z = 0`` and ``z = h``.
 
     Args:
