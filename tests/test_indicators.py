@@ -59,7 +59,7 @@ def _accumulated(log_norms, taus):
     carry = (zero, zero, zero, zero, zero, zero)
     previous = 0.0
     for log_norm, tau in zip(log_norms, taus):
-        carry = _accumulate(carry, log_norm - previous, jnp.asarray(tau))
+        carry = _accumulate(carry, log_norm - previous, jnp.asarray(tau), megno=True)
         previous = log_norm
     _, fli, tau, _, y, area = carry
     return float(fli), float(y), float(_mean_megno(area, tau))
