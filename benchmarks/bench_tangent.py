@@ -20,8 +20,9 @@ batch) for
 
 and a second table, the chaos indicators a user calls, for every kind of scene
 (the spinning stick, the lens, the stick between walls, the stick in an ellipse,
-a triangle in a stadium): collisions per second of ``jb.run`` (final states, the
-plain rate) beside ``jb.fli``, ``jb.fli_map`` (the same starts as a map),
+a triangle in a stadium), on ``--indicator-batch`` orbits (2048) of
+``--indicator-collisions`` collisions (500) for every contender: collisions per
+second of ``jb.run`` (final states, the plain rate) beside ``jb.fli``, ``jb.fli_map`` (the same starts as a map),
 ``jb.megno`` and ``jb.lyapunov_spectrum`` (its default, counted per tangent
 vector it carries), each as a ratio to the plain rate;
 
@@ -57,6 +58,16 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=1024)
     parser.add_argument("--repeats", type=int, default=5, help="interleaved rounds")
     parser.add_argument(
+        "--indicator-batch", type=int, default=2048, help="orbits of the indicators' table (both cores)"
+    )
+    parser.add_argument(
+        "--indicator-collisions",
+        type=int,
+        default=500,
+        help="collisions per orbit of the indicators' table, the same for jb.run and every indicator",
+    )
+    parser.add_argument("--indicators-only", action="store_true", help="only the indicators' table")
+    parser.add_argument(
         "--results",
         default=None,
         metavar="PATH",
@@ -90,7 +101,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|---|")
     rows = []
-    for label, R, ell, inertia in SCENES:
+    for label, R, ell, inertia in [] if args.indicators_only else SCENES:
         scene = jb.StickInCircle(R=R, ell=ell, inertia=inertia)
         states, _ = sample_energy_shell(scene, args.batch, energy=0.5, seed=0)
         states = jnp.asarray(states)
@@ -125,7 +136,7 @@ def main() -> None:
                 "paired_over_spectrum": r_pair / r_spec,
             }
         )
-    indicator_rows = indicators_beside_run(jb, jnp, args, n_plain, n_tangent)
+    indicator_rows = indicators_beside_run(jb, jnp, args)
     if args.results != "none":
         path = args.results or os.path.join(
             os.path.dirname(os.path.abspath(__file__)),
@@ -168,10 +179,13 @@ def indicator_scenes(jb):
     }
 
 
-def indicators_beside_run(jb, jnp, args, n_plain, n_tangent):
-    """The indicators' collisions per second beside ``jb.run``'s, one scene after another, interleaved."""
+def indicators_beside_run(jb, jnp, args):
+    """The indicators' collisions per second beside ``jb.run``'s, one scene after another, interleaved, the
+    same orbits and collisions for each (a call's fixed cost then weighs alike)."""
     import jax
 
+    batch, n = (64, 50) if args.quick else (args.indicator_batch, args.indicator_collisions)
+    print(f"\nThe indicators beside jb.run: {batch} orbits x {n} collisions each, both cores")
     print(
         "\n| scene | jb.run (coll/s) | fli | fli_map | megno | spectrum, per vector "
         "| ratios to jb.run (fli / fli_map / megno / spectrum per vector) |"
@@ -179,21 +193,21 @@ def indicators_beside_run(jb, jnp, args, n_plain, n_tangent):
     print("|---|---|---|---|---|---|---|")
     rows = []
     for label, scene in indicator_scenes(jb).items():
-        states = jnp.asarray(jb.sample_energy_shell(scene, args.batch, energy=0.5, seed=0)[0])
+        states = jnp.asarray(jb.sample_energy_shell(scene, batch, energy=0.5, seed=0)[0])
         vectors = int(jax.block_until_ready(jb.lyapunov_spectrum(scene, states[0], 2).exponents).shape[-1])
         paired = bool(jb.lyapunov_spectrum(scene, states[0], 2).paired)
         carried = vectors // 2 if paired else vectors
         runs = {
-            "run": lambda: jb.run(scene, states, n_plain, progress=False).final_state,
-            "fli": lambda: jb.fli(scene, states, n_tangent, n_history=1).value,
-            "fli_map": lambda: jb.fli_map(scene, states, n_tangent),
-            "megno": lambda: jb.megno(scene, states, n_tangent, n_history=1).value,
-            "spectrum": lambda: jb.lyapunov_spectrum(scene, states, n_tangent, n_history=1).exponents,
+            "run": lambda: jb.run(scene, states, n, progress=False).final_state,
+            "fli": lambda: jb.fli(scene, states, n, n_history=1).value,
+            "fli_map": lambda: jb.fli_map(scene, states, n),
+            "megno": lambda: jb.megno(scene, states, n, n_history=1).value,
+            "spectrum": lambda: jb.lyapunov_spectrum(scene, states, n, n_history=1).exponents,
         }
         timings = interleaved(
             {name: lambda run=run: jax.block_until_ready(run()) for name, run in runs.items()}, args.repeats
         )
-        rate = {name: args.batch * (n_plain if name == "run" else n_tangent) / t.median for name, t in timings.items()}
+        rate = {name: batch * n / t.median for name, t in timings.items()}
         rate["spectrum"] *= carried  # tangent vectors carried, each a collision's worth of tangent work
         ratios = {name: rate[name] / rate["run"] for name in runs if name != "run"}
         print(
@@ -201,7 +215,16 @@ def indicators_beside_run(jb, jnp, args, n_plain, n_tangent):
             f"| {rate['spectrum']:.3g} ({carried} vectors) | " + " / ".join(f"{r:.2f}" for r in ratios.values()) + " |",
             flush=True,
         )
-        rows.append({"scene": label, "vectors_carried": carried, "rates": rate, "ratio_to_run": ratios})
+        rows.append(
+            {
+                "scene": label,
+                "orbits": batch,
+                "collisions": n,
+                "vectors_carried": carried,
+                "rates": rate,
+                "ratio_to_run": ratios,
+            }
+        )
     return rows
 
 
