@@ -187,7 +187,7 @@ def _initial_vector(scene, state0, tangent0, per):
 
 def _accumulate(carry, log_stretch, tau, megno: bool):
     """One collision's update of the indicators' running sums (MEGNO's only when ``megno``, static: the FLI
-    alone needs two of them, and for a cheap collision MEGNO's sums are a fifth of the tangent run's time).
+    alone needs two of them, and for a cheap collision the other three weigh on the tangent run).
 
     ``carry = (L, fli, tau_prev, moment, Y, area)``: ``L = log|w|``, the FLI,
     the previous time, ``moment = int_0^tau s dL``, ``Y`` and
