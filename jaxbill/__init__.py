@@ -28,13 +28,9 @@ from jaxbill._analysis.chaos import (  # noqa: E402
 )
 from jaxbill._analysis.indicators import FastLyapunovIndicator, Megno, fli, fli_map, megno  # noqa: E402
 from jaxbill._analysis.lyapunov import LyapunovSpectrum, lyapunov_spectrum  # noqa: E402
-from jaxbill._analysis.periodic import (  # noqa: E402
-    STABILITY_LABELS,
-    PeriodicOrbit,
-    continue_periodic_orbit,
-    find_periodic_orbit,
-    find_periodic_orbits,
-)
+from jaxbill._analysis.periodic import find_periodic_orbit, find_periodic_orbits  # noqa: E402
+from jaxbill._analysis.periodic_orbit import STABILITY_LABELS, PeriodicOrbit  # noqa: E402
+from jaxbill._analysis.periodic_rotation import continue_periodic_orbit  # noqa: E402
 from jaxbill._analysis.section_measures import (  # noqa: E402
     CHAOTIC_DIVERGENCE,
     count_islands,

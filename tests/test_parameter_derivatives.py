@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._analysis.periodic import find_periodic_orbit, reduced_state
+from jaxbill._analysis.periodic import find_periodic_orbit
+from jaxbill._analysis.periodic_rotation import reduced_state
 
 N_COLLISIONS = 6
 REL = 1e-6

@@ -1,4 +1,4 @@
-r"""Periodic orbits by Levenberg-Marquardt on the section map (jaxbill._analysis.periodic).
+r"""Periodic orbits by Levenberg-Marquardt on the section map (jaxbill._analysis.periodic and its solvers).
 
 The diameter orbit, derived by hand
 -----------------------------------
@@ -47,12 +47,8 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._analysis.periodic import (
-    continue_periodic_orbit,
-    find_periodic_orbit,
-    find_periodic_orbits,
-    reduced_state,
-)
+from jaxbill._analysis.periodic import find_periodic_orbit, find_periodic_orbits
+from jaxbill._analysis.periodic_rotation import continue_periodic_orbit, reduced_state
 
 PERTURBED_DIAMETER_GUESS = [0.01, 0.02, 0.01, 1.0, 0.003, 0.002]
 

@@ -35,7 +35,7 @@ wrapped); the energy ``E - E0`` (the map commutes with a rescaling of all
 velocities, so the energy must be pinned); in 3D the angular momentum ``L_z -
 L0`` when pinned, and ``psi - psi0`` when the rotation is prescribed. Solved by
 optimistix's Levenberg-Marquardt, differentiable in the scene's leaves by the
-implicit function theorem (as in ``jaxbill._analysis.periodic``).
+implicit function theorem (as in ``jaxbill._analysis.periodic_orbit``).
 
 Stability
 ---------
@@ -52,7 +52,7 @@ energy level set (the null space of ``grad E``) it is symplectic:
   and in the ``y``-``z`` plane.)
 
 A stick that never turns has a 0-dimensional level set: multipliers ``(1,
-1)``, parabolic. Labels from ``tr = mu + 1/mu`` as in ``jaxbill._analysis.periodic``.
+1)``, parabolic. Labels from ``tr = mu + 1/mu`` as in ``jaxbill._analysis.periodic_orbit``.
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ _MIN_FLIGHT = 1e-6
 
 
 def wrap_angle(angle):
-    """Into ``[-pi, pi)`` (also used by ``jaxbill._analysis.periodic``)."""
+    """Into ``[-pi, pi)`` (also used by the periodic-orbit solvers of ``jaxbill._analysis``)."""
     return jnp.remainder(angle + jnp.pi, _TWO_PI) - jnp.pi
 
 
