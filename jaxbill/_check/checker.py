@@ -64,9 +64,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 from jaxtyping import ArrayLike, Real
 
+from jaxbill._check.events import gaps_at_step_ends, solve_to_event
 from jaxbill._check.report import (
     CheckFlag,
     CheckReport,
@@ -475,48 +475,31 @@ def _segment(column: _StraightColumn, y0, dtmax, solver, rtol, atol, root_tol, m
         value = jnp.min(column.walls(y[0:3])) / column.gap_unit  # O(1), so root_tol is relative
         return jnp.where(t <= 0.0, 1.0, value)
 
-    event = diffrax.Event(
-        cond_fn,
-        root_finder=optx.Newton(rtol=root_tol, atol=root_tol),
-        direction=False,
-    )
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(_vector_field),
-        solver,
-        t0=0.0,
+    flight = solve_to_event(
+        _vector_field,
+        y0,
         t1=jnp.inf,
         dt0=dtmax,
-        y0=y0,
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax),
-        saveat=diffrax.SaveAt(steps=True),
-        event=event,
+        dtmax=dtmax,
+        solver=solver,
+        rtol=rtol,
+        atol=atol,
+        root_tol=root_tol,
         max_steps=max_steps,
-        throw=False,
+        conditions=cond_fn,
     )
-    ts, ys = sol.ts, sol.ys
-    assert ts is not None and ys is not None  # SaveAt(steps=True) saves both
-    valid = jnp.isfinite(ts)
-    n_steps = jnp.sum(valid)
-    last = jnp.maximum(n_steps - 1, 0)
-    t_event, y_event = ts[last], ys[last]
-
-    t_start = jnp.concatenate([jnp.zeros(1), ts[:-1]])
-    y_start = jnp.concatenate([y0[None], ys[:-1]])
-    t_end = jnp.where(valid, ts, 0.0)
-    y_end = jnp.where(valid[:, None], ys, y0)
-    f0, p0 = jax.vmap(column.walls_and_slopes)(y_start)
-    f1, p1 = jax.vmap(column.walls_and_slopes)(y_end)
+    ts, valid, n_steps, last = flight.ts, flight.valid, flight.n_steps, flight.last
+    t_start, y_start, t_end, y_end = flight.t_start, flight.y_start, flight.t_end, flight.y_end
+    t_event, y_event = ts[last], flight.ys[last]
+    f0, p0, f1, p1 = gaps_at_step_ends(column.walls_and_slopes, flight, corner_tol * column.gap_unit)
     K = jax.vmap(column.curvature_bound)(y_start, y_end)
     K = K.reshape(K.shape[0], -1)  # one bound for every gap, or one per gap
 
     w_event, slope_event = column.walls_and_slopes(y_event)
     gap_index = jnp.arange(w_event.shape[0])
     k_index = jnp.argmin(w_event)
-    event_ok = sol.result == diffrax.RESULTS.event_occurred
+    event_ok = flight.result == diffrax.RESULTS.event_occurred
     is_last = (jnp.arange(ts.shape[0]) == last) & event_ok
-    # The wall that just bounced starts at zero to rounding (step 0).
-    first = (jnp.arange(ts.shape[0]) == 0)[:, None]
-    f0 = jnp.where(first & (f0 > -corner_tol * column.gap_unit), jnp.maximum(f0, 0.0), f0)
     # The event itself is a root of the contacting wall: certify up to it only.
     at_event = is_last[:, None] & (gap_index[None, :] == k_index)
     f1 = jnp.where(at_event, jnp.maximum(f1, 0.0), f1)
@@ -531,7 +514,7 @@ def _segment(column: _StraightColumn, y0, dtmax, solver, rtol, atol, root_tol, m
     bad_step = jnp.where(jnp.any(bent), jnp.argmax(bent), jnp.argmax(jnp.any(bad, axis=1)))
 
     flag = jnp.where(jnp.any(bent), 6, jnp.where(jnp.any(bad), 1, 0))
-    flag = jnp.where((flag == 0) & (sol.result == diffrax.RESULTS.max_steps_reached), 2, flag)
+    flag = jnp.where((flag == 0) & (flight.result == diffrax.RESULTS.max_steps_reached), 2, flag)
     flag = jnp.where((flag == 0) & ~event_ok, 3, flag)
     flag = jnp.where((flag == 0) & (slope_event[k_index] >= 0.0), 4, flag)
     if w_event.shape[0] > 1:  # another gap at the wall too: a corner (a crease of the column)

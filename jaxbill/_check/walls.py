@@ -117,8 +117,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
+from jaxbill._check.events import gaps_at_step_ends, solve_to_event
 from jaxbill._check.report import CheckFlag, CheckResult, certified_positive, comparison_report, first_index, wrap_angle
 from jaxbill._engine.collision import orbit as _orbit
 from jaxbill._engine.validation import MAX_STORED_COUNT, check_count
@@ -222,46 +222,32 @@ def _segment(core: _Reduced, y0, t1, dtmax, solver, rtol, atol, root_tol, chunk_
     # Several gaps crossing in one step: diffrax locates the first listed, which
     # may not be the earliest; the certification below then fails (the other gap
     # is negative at the event) and the step is redone finely.
-    event = diffrax.Event(
-        [gap_event(k) for k in range(4)], root_finder=optx.Newton(rtol=root_tol, atol=root_tol), direction=False
-    )
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(_vector_field),
-        solver,
-        t0=0.0,
+    flight = solve_to_event(
+        _vector_field,
+        y0,
         t1=t1,
         dt0=jnp.minimum(dtmax, t1),
-        y0=y0,
-        args=core,
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax),
-        saveat=diffrax.SaveAt(steps=True),
-        event=event,
+        dtmax=dtmax,
+        solver=solver,
+        rtol=rtol,
+        atol=atol,
+        root_tol=root_tol,
         max_steps=chunk_steps,
-        throw=False,
+        conditions=[gap_event(k) for k in range(4)],
+        args=core,
     )
-    ts, ys = sol.ts, sol.ys
-    assert ts is not None and ys is not None  # SaveAt(steps=True) saves both
-    valid = jnp.isfinite(ts)
-    n_steps = jnp.sum(valid)
-    last = jnp.maximum(n_steps - 1, 0)
-    t_start = jnp.concatenate([jnp.zeros(1), ts[:-1]])
-    y_start = jnp.concatenate([y0[None], ys[:-1]])
-    t_end = jnp.where(valid, ts, 0.0)
-    y_end = jnp.where(valid[:, None], ys, y0)
-    f0, p0 = jax.vmap(core.gaps_and_slopes)(y_start)
-    f1, p1 = jax.vmap(core.gaps_and_slopes)(y_end)
+    ts, ys, valid, n_steps, last = flight.ts, flight.ys, flight.valid, flight.n_steps, flight.last
+    t_start, y_start, t_end, y_end = flight.t_start, flight.y_start, flight.t_end, flight.y_end
+    f0, p0, f1, p1 = gaps_at_step_ends(core.gaps_and_slopes, flight, corner_tol * core.h)
     # |g''| <= ell |w|^2; |w|^2 is a flight constant, evaluated at both ends
     # (the integrated one drifts by the solver's error) and padded.
     K = core.ell * jnp.maximum(jax.vmap(core.turn_rate2)(y_start), jax.vmap(core.turn_rate2)(y_end))
     K = K * (1.0 + 1e-6)
 
-    event_ok = sol.result == diffrax.RESULTS.event_occurred
-    assert sol.event_mask is not None  # set whenever an Event is given
-    k_index = jnp.argmax(jnp.stack(sol.event_mask))
+    event_ok = flight.result == diffrax.RESULTS.event_occurred
+    assert flight.event_mask is not None  # set whenever an Event is given
+    k_index = jnp.argmax(jnp.stack(flight.event_mask))
     steps = jnp.arange(ts.shape[0])
-    # A gap that starts at zero to rounding (the end that just bounced) counts as 0.
-    first = (steps == 0)[:, None]
-    f0 = jnp.where(first & (f0 > -corner_tol * core.h), jnp.maximum(f0, 0.0), f0)
     # The event is a root of the touching gap: certify up to it only. Another gap
     # within corner_tol h of zero there is a corner, flagged after the landing.
     at_event = ((steps == last) & event_ok)[:, None] & (
@@ -272,7 +258,7 @@ def _segment(core: _Reduced, y0, t1, dtmax, solver, rtol, atol, root_tol, chunk_
     bad = valid & ~jnp.all(ok, axis=1)
     bad_step = jnp.argmax(bad)
 
-    no_event = (sol.result == diffrax.RESULTS.max_steps_reached) | (sol.result == diffrax.RESULTS.successful)
+    no_event = (flight.result == diffrax.RESULTS.max_steps_reached) | (flight.result == diffrax.RESULTS.successful)
     status = jnp.where(jnp.any(bad), 1, jnp.where(event_ok, 0, jnp.where(no_event, 2, 3)))
     return dict(
         status=status,
