@@ -43,9 +43,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbill._scenes.tables.base import KICK_NORMAL_SQUARED, Motion, Piece
+from jaxbill._scenes.tables.flat import StraightWallBounds
 
 
-class Segment(Piece):
+class Segment(StraightWallBounds, Piece):
     """The segment from ``(x0, y0)`` to ``(x1, y1)`` with the table on its left: a finite flat wall.
 
     Fields (lengths): the ends, ``scale`` (the gap's unit per length), ``unit``
@@ -65,8 +66,6 @@ class Segment(Piece):
     pad: jax.Array | float
 
     straight_exit: ClassVar[bool] = True
-    bounds_jerk: ClassVar[bool] = True
-    flat: ClassVar[bool] = True
 
     @property
     def _frame(self):
@@ -89,21 +88,6 @@ class Segment(Piece):
     def gradient(self, x, y):
         _, _, nx, ny, _ = self._frame
         return -self.scale * nx, -self.scale * ny
-
-    def hessian_form(self, x, y, dx, dy):
-        return 0.0 * dx
-
-    @property
-    def gap_scale(self):
-        return self.unit
-
-    def curvature_bounds(self, motion: Motion):
-        turn = self.scale * (motion.omega * motion.omega) * motion.radius
-        return turn, turn
-
-    def jerk_bound(self, motion: Motion):
-        spin = jnp.abs(motion.omega)
-        return self.scale * (spin * spin * spin) * motion.radius
 
     def exit_time(self, px, py, vx, vy):
         """First ``t >= 0`` at which ``P + v t`` crosses the segment outwards (``inf``: never).

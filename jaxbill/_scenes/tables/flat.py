@@ -11,7 +11,7 @@ the wall while ``n . c < d - rho``; a point on a straight line reaches it at
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -21,31 +21,18 @@ from jaxbill._engine.validation import check_parameter, real_parameter
 from jaxbill._scenes.tables.base import KICK_NORMAL_SQUARED, Motion, Piece, Table, band_crossing
 
 
-class HalfPlane(Piece):
-    """The flat wall ``n . P <= d``: ``n = (nx, ny)`` its unit outward normal, ``(sx, sy)`` a point on it (the
-    origin of its arc length, which runs along ``(-ny, nx)``); the gap is ``scale (d - n . P)``, in units of
-    ``unit``."""
+class StraightWallBounds:
+    """What every straight wall answers alike (the module's docstring derives it): no curvature, so its bounds
+    along a flight come from the contact point's turn about the centre alone. A mixin of methods only, beside
+    ``Piece``: the wall's own fields ``scale`` (the gap's unit per length) and ``unit`` (the table's gap unit)
+    stay where its constructor puts them."""
 
-    nx: jax.Array | float
-    ny: jax.Array | float
-    d: jax.Array | float
-    sx: jax.Array | float
-    sy: jax.Array | float
-    scale: jax.Array | float
-    unit: jax.Array | float
-    # The length of the side this wall is (``inf``: a whole line).
-    side: jax.Array | float
+    if TYPE_CHECKING:
+        scale: jax.Array | float
+        unit: jax.Array | float
 
-    straight_exit: ClassVar[bool] = True
     bounds_jerk: ClassVar[bool] = True
     flat: ClassVar[bool] = True
-
-    def gap(self, x, y):
-        return self.scale * (self.d - (self.nx * x + self.ny * y))
-
-    def gradient(self, x, y):
-        # Constants where the wall's parameters are: a Pallas kernel lowers no operation on a constant array.
-        return -self.scale * self.nx, -self.scale * self.ny
 
     def hessian_form(self, x, y, dx, dy):
         return 0.0 * dx
@@ -61,6 +48,31 @@ class HalfPlane(Piece):
     def jerk_bound(self, motion: Motion):
         spin = jnp.abs(motion.omega)
         return self.scale * (spin * spin * spin) * motion.radius
+
+
+class HalfPlane(StraightWallBounds, Piece):
+    """The flat wall ``n . P <= d``: ``n = (nx, ny)`` its unit outward normal, ``(sx, sy)`` a point on it (the
+    origin of its arc length, which runs along ``(-ny, nx)``); the gap is ``scale (d - n . P)``, in units of
+    ``unit``."""
+
+    nx: jax.Array | float
+    ny: jax.Array | float
+    d: jax.Array | float
+    sx: jax.Array | float
+    sy: jax.Array | float
+    scale: jax.Array | float
+    unit: jax.Array | float
+    # The length of the side this wall is (``inf``: a whole line).
+    side: jax.Array | float
+
+    straight_exit: ClassVar[bool] = True
+
+    def gap(self, x, y):
+        return self.scale * (self.d - (self.nx * x + self.ny * y))
+
+    def gradient(self, x, y):
+        # Constants where the wall's parameters are: a Pallas kernel lowers no operation on a constant array.
+        return -self.scale * self.nx, -self.scale * self.ny
 
     def quiet_interval(self, motion: Motion):
         along = self.nx * motion.cx + self.ny * motion.cy
