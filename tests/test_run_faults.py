@@ -207,6 +207,15 @@ DISK_N, DISK_CHUNK = 60000, 5000
 DISK_SECTION = Section(every_collision, capacity=DISK_CHUNK)
 
 
+@pytest.fixture(autouse=True)
+def python_handles_ctrl_c():
+    """Ctrl-C as an interactive session has it (Python's KeyboardInterrupt handler): what the tests below
+    assume, whatever an earlier test in the same worker process left installed."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 @pytest.fixture
 def small_disk(tmp_path):
     """A 2 MiB tmpfs (root only, and only where mounting is allowed)."""
