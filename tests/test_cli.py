@@ -96,6 +96,22 @@ def test_version_prints_the_package_version():
     assert proc.stdout.strip() == f"jaxbill {jb.__version__}"
 
 
+@pytest.mark.parametrize("option", ["--help", "--version"])
+def test_help_and_version_answer_without_loading_jax(option):
+    """The command answers ``--help`` and ``--version`` without importing JAX or the library's
+    numerical modules (which take about a second): ``import jaxbill`` loads them on first use."""
+    probe = (
+        "import sys\nfrom jaxbill.cli import main\n"
+        f"try:\n    main([{option!r}])\nexcept SystemExit:\n    pass\n"
+        "heavy = sorted(m for m in ('jax', 'numpy', 'diffrax', 'equinox', 'matplotlib') if m in sys.modules)\n"
+        "print('loaded:', heavy)"
+    )
+    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == "loaded: []", proc.stdout[-500:]
+    assert "demo" in proc.stdout or "jaxbill" in proc.stdout
+
+
 def test_no_command_prints_the_help_and_exits_2():
     """Plain ``jaxbill`` runs nothing: it lists the commands and says to choose one."""
     proc = _run()

@@ -208,3 +208,35 @@ def test_each_rule_fails_on_a_violation():
 def test_the_cycle_finder_finds_cycles():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None
+
+
+def _type_checking_imports(path: pathlib.Path) -> dict[str, tuple[str, ...]]:
+    """``{module: names}`` of the ``from ... import`` lines under ``if TYPE_CHECKING:`` in ``path``."""
+    found = {}
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for line in node.body:
+                if isinstance(line, ast.ImportFrom) and line.module:
+                    found[line.module] = tuple(alias.name for alias in line.names)
+    return found
+
+
+def test_the_namespace_loads_what_it_declares():
+    """``jaxbill`` loads its public names on first use, from a table of modules; the same names are
+    imported for type checkers and the API reference, and listed in ``__all__``: all three agree, and
+    each name is found where the table says."""
+    import importlib
+
+    import jaxbill
+
+    declared = _type_checking_imports(PACKAGE / "__init__.py")
+    assert declared == jaxbill._PUBLIC
+    loaded = {name for names in jaxbill._PUBLIC.values() for name in names}
+    assert sorted(jaxbill.__all__) == sorted(loaded | {"backend_settings"})
+    for module, names in jaxbill._PUBLIC.items():
+        for name in names:
+            public, defined = getattr(jaxbill, name), getattr(importlib.import_module(module), name)
+            # the tests' shape checks (conftest.py) wrap some public functions
+            assert defined in (public, getattr(public, "__wrapped__", None))
+    with pytest.raises(AttributeError, match="no attribute 'orbitt'"):
+        jaxbill.orbitt  # noqa: B018

@@ -29,6 +29,12 @@
    Other CPUs (ARM) have no FMA-free level to cap at, so there jaxbill sets
    neither option.
 
+Where JAX is not imported yet, jaxbill makes the device count (and float64)
+through the variables JAX reads at its import (``JAX_NUM_CPU_DEVICES``,
+``JAX_ENABLE_X64``), so that ``import jaxbill`` stays quick; child processes
+inherit them, as they inherit ``XLA_FLAGS``, and there read as a choice
+already made.
+
 Both are process-wide and take effect only if set before the backend starts
 (the first computation, or ``jax.devices()``). jaxbill never overrides a
 choice the user made: an ``XLA_FLAGS`` that already names
@@ -46,8 +52,7 @@ from __future__ import annotations
 
 import os
 import platform
-
-import jax
+import sys
 
 SMALL_LOOP_OPTION = "xla_cpu_small_while_loop_byte_threshold=1000000000"
 NO_FMA_OPTION = "--xla_cpu_max_isa=AVX"
@@ -55,7 +60,28 @@ NO_FMA_OPTION = "--xla_cpu_max_isa=AVX"
 _settings: dict[str, str] = {}
 
 
+def _jax_imported() -> bool:
+    return "jax" in sys.modules
+
+
+def _set_jax_option(name: str, value: bool | int) -> None:
+    """Set one of JAX's options: through its environment variable while JAX is not imported yet.
+
+    JAX reads ``JAX_<NAME>`` when it is first imported, so the option holds from then on
+    without importing JAX now (``import jaxbill`` stays quick); the variable is inherited
+    by child processes, as ``XLA_FLAGS`` is.
+    """
+    if _jax_imported():
+        import jax
+
+        jax.config.update(f"jax_{name}", value)
+    else:
+        os.environ[f"JAX_{name.upper()}"] = str(int(value))
+
+
 def _backend_started() -> bool:
+    if not _jax_imported():  # no backend without JAX
+        return False
     try:
         from jax._src import xla_bridge  # private: read-only use, guarded
 
@@ -72,7 +98,8 @@ def _cores() -> int:
 
 
 def configure() -> None:
-    """Make both settings where the user has not and the backend has not started (see the module docstring)."""
+    """Switch JAX to float64, then make both settings where the user has not and the backend has not started."""
+    _set_jax_option("enable_x64", True)
     if os.environ.get("JAXBILL_NO_XLA_SETTINGS"):
         not_set = "not set (JAXBILL_NO_XLA_SETTINGS)"
         _settings.update(small_loops=not_set, cpu_devices=not_set)
@@ -94,15 +121,21 @@ def configure() -> None:
     user_chose_devices = (
         "xla_force_host_platform_device_count" in flags
         or "JAX_NUM_CPU_DEVICES" in os.environ
-        # jax declares its options as dynamic attributes, which pyright cannot see
-        or jax.config.jax_num_cpu_devices != -1  # pyright: ignore[reportAttributeAccessIssue]
+        or (_jax_imported() and _jax_num_cpu_devices() != -1)
     )
     if user_chose_devices:
         _settings["cpu_devices"] = "left to the user's choice"
     else:
         cores = _cores()
-        jax.config.update("jax_num_cpu_devices", cores)
+        _set_jax_option("num_cpu_devices", cores)
         _settings["cpu_devices"] = f"set ({cores}, one per core)"
+
+
+def _jax_num_cpu_devices() -> int:
+    import jax
+
+    # jax declares its options as dynamic attributes, which pyright cannot see
+    return jax.config.jax_num_cpu_devices  # pyright: ignore[reportAttributeAccessIssue]
 
 
 def backend_settings() -> dict[str, str]:
