@@ -50,7 +50,10 @@ def check_scene(scene) -> None:
     known = _CHECKED_SCENES.get(key)
     if known is not None and known() is scene:
         return
-    scene.check()
+    # A scene's own checks compute with its (concrete) parameters; under a trace, jnp would make
+    # tracers of them, which the checks cannot read.
+    with jax.ensure_compile_time_eval():
+        scene.check()
     if all(isinstance(leaf, jax.Array) for leaf in jax.tree_util.tree_leaves(scene)):
 
         def forget(reference, key=key):

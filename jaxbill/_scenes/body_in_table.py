@@ -853,7 +853,7 @@ class BodyInTable(eqx.Module):
     def section_chart(self) -> SectionChart:
         """How ``jb.explore`` seeds, reads and draws the area-preserving section."""
         if not self.sections:
-            raise TypeError(f"{self.table.name} ({type(self.table).__name__}) offers no section to explore")
+            raise TypeError(f"scene: {self.table.name} ({type(self.table).__name__}) offers no section to explore")
         return body_sections.CHARTS[self.area_preserving_section]
 
     def sample_states(self, rng, count: int, energy: float, angular_momentum=None, margin: float = 1e-9):

@@ -169,7 +169,17 @@ class StickBetweenWalls2D(BodyInTable):
 
     @property
     def section_chart(self) -> SectionChart:
-        """The explorer's chart of the floor section."""
+        """The explorer's chart of the floor section: ``(theta, p)`` of a stick that turns.
+
+        Raises:
+            TypeError: for a stick that never turns (``inertia = inf``): its angle never changes, so
+                its floor section has nothing to explore in ``theta``.
+        """
+        if not self.body_turns:
+            raise TypeError(
+                "scene: a stick between walls that never turns (inertia = inf) has no floor section to "
+                "explore: its angle theta never changes"
+            )
         return WALLS_2D_CHART
 
     def checker_flight(self) -> ReducedWalls:
