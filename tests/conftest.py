@@ -49,11 +49,11 @@ if "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS" in os.environ:
         "jax_persistent_cache_min_compile_time_secs", float(os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"])
     )
 
-# Test files that take minutes in all, longest first (about 7 and 6 minutes of a
+# Test files that take minutes in all, longest first (about 7, 6 and 6 minutes of a
 # worker's time on 2 cores). The workers take whole files in collection order
 # (``--dist loadfile --no-loadscope-reorder``), so these start first: one left for
 # the end would keep one worker busy while the others idle.
-LONGEST_FIRST = ("test_drivers.py", "test_notebooks.py")
+LONGEST_FIRST = ("test_drivers.py", "test_notebooks.py", "test_scene_contract.py")
 
 
 # Tests that read the built site or the API reference's hooks need the docs extra: they skip

@@ -1,15 +1,15 @@
-"""Every analysis on every composition: a body in a table runs through the whole library unchanged.
+"""The analyses on compositions: what a body in a table adds to the contract every scene keeps.
 
-One catalogue of compositions (points, a dumbbell of unequal masses, rigid
+The catalogue's compositions (points, a dumbbell of unequal masses, rigid
 polygons, the coin; circles, ellipses, stadiums, polygons, the strip and a
-user's convex function) goes through the drivers (bitwise alike, the Pallas
-kernel in interpret mode and lowered for CUDA), the tangent maps, the chaos
-indicators, the energy-shell sampler, the sections and their inverses, the
-explorer's chart and the periodic-orbit search. Each test asserts a property
-that holds independently of the code under test: bitwise agreement between
-independent drivers, the flow direction in the kernel of the collision map's
-Jacobian, the pairing of a symplectic flow's exponents, closed-form stability
-of a billiard's periodic orbits, invariants of the sampler's output.
+user's convex function) already go through ``test_scene_contract.py`` (drivers,
+kernels, tangent maps, sampler, section charts, bad input). Here: which of them
+compile closed forms, Lyapunov spectra, MEGNO, the FLI map in the kernel, the
+sampler at fixed angular momentum, the Birkhoff map's area and the periodic-orbit
+search. Each test asserts a property that holds independently of the code under
+test: the pairing of a symplectic flow's exponents, MEGNO's limits on regular and
+chaotic orbits, the Birkhoff map's unit determinant, closed-form stability of a
+billiard's periodic orbits.
 """
 
 from __future__ import annotations
@@ -20,36 +20,9 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from jaxbill._engine import lanes as _lanes
-from jaxbill._engine import pallas as _pallas
+from scene_catalogue import compositions, squircle
 
-INF = float("inf")
-TRIANGLE = [(0.0, 0.0), (0.6, 0.0), (0.15, 0.4)]
-PENTAGON = [(1.1, -0.2), (0.7, 0.85), (-0.45, 0.95), (-1.05, 0.05), (-0.2, -0.95)]
-
-
-def squircle(x, y):
-    """A user's convex table: ``x^4 + y^4 <= 1``."""
-    return x**4 + y**4 - 1.0
-
-
-def catalogue():
-    return {
-        "point in stadium": jb.BodyInTable(jb.PointBody(), jb.Stadium(1.0, 0.5)),
-        "triangle in stadium": jb.BodyInTable(jb.PolygonBody(TRIANGLE), jb.Stadium(1.0, 0.8)),
-        "dumbbell 1:3 in ellipse": jb.BodyInTable(jb.Dumbbell.from_masses(1.0, 3.0, 0.8), jb.Ellipse(2.0, 1.2)),
-        "square in circle": jb.BodyInTable(jb.PolygonBody.regular(4, 0.3), jb.Circle(1.0)),
-        "point in pentagon": jb.BodyInTable(jb.PointBody(), jb.Polygon(PENTAGON)),
-        "static triangle in pentagon": jb.BodyInTable(jb.PolygonBody(TRIANGLE, inertia=INF), jb.Polygon(PENTAGON)),
-        "coin between walls": jb.BodyInTable(jb.EllipseBody(0.4, 0.2), jb.Strip(1.0)),
-        "dumbbell in a user's table": jb.BodyInTable(
-            jb.Dumbbell(0.3), jb.ConvexTable(squircle, (-1.2, 1.2, -1.2, 1.2))
-        ),
-    }
-
-
-SCENES = catalogue()
-NAMES = list(SCENES)
+SCENES = compositions()
 
 
 @pytest.fixture(scope="module")
@@ -66,57 +39,6 @@ def test_closed_forms_compile_no_root_search():
     assert not SCENES["static triangle in pentagon"].searches_for_roots
     assert SCENES["triangle in stadium"].searches_for_roots
     assert jb.BodyInTable(jb.PointBody(), jb.ConvexTable(squircle, (-1.2, 1.2, -1.2, 1.2))).searches_for_roots
-
-
-@pytest.mark.parametrize("name", NAMES)
-def test_drivers_agree(name, starts):
-    """Serial, lockstep, the lane state machine and the Pallas kernel take the same collisions: the same
-    contacts, states equal to rounding (vectorised arithmetic and the kernel may round a last bit
-    differently, which a chaotic orbit then grows), and bitwise where two calls run the same program:
-    ``jb.run`` and ``jb.orbit`` one orbit after another."""
-    scene, states = SCENES[name], starts[name]
-    reference = jb.orbit(scene, states, 8, driver="serial")
-    assert np.all(np.isfinite(np.asarray(reference.t)))
-    lanes = jb.orbit(scene, states, 8, driver="lanes")
-    for driver, other in (("lockstep", jb.orbit(scene, states, 8, driver="lockstep")), ("lanes", lanes)):
-        np.testing.assert_array_equal(np.asarray(other.contact), np.asarray(reference.contact), err_msg=driver)
-        scale = float(scene.length_scale) + np.abs(np.asarray(reference.state))
-        assert np.all(np.abs(np.asarray(other.state) - np.asarray(reference.state)) <= 1e-10 * scale), driver
-    serial = jb.run(scene, states, 8, driver="serial")
-    np.testing.assert_array_equal(serial.final_state, np.asarray(reference.state[:, -1]))
-    np.testing.assert_array_equal(serial.time, np.asarray(reference.t[:, -1]))
-    kernel = jb.run(scene, states, 8, driver="pallas")
-    scale = float(scene.length_scale) + np.abs(np.asarray(lanes.state[:, -1]))
-    assert np.all(np.abs(kernel.final_state - np.asarray(lanes.state[:, -1])) <= 1e-10 * scale)
-    codes = set(np.unique(np.asarray(reference.contact)).tolist())
-    assert codes <= set(scene.contact_codes), codes
-
-
-@pytest.mark.parametrize("name", ["triangle in stadium", "point in pentagon", "coin between walls"])
-def test_pallas_kernels_lower_for_cuda(name):
-    scene = SCENES[name]
-    states = jnp.zeros((64, 6))
-    final = (
-        jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 10))
-        .trace(states, _lanes.fresh_carry(scene, states))
-        .lower(lowering_platforms=("cuda",))
-    )
-    tangent = jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, 10)).trace(states, states)
-    assert "triton" in final.as_text().lower()
-    assert "triton" in tangent.lower(lowering_platforms=("cuda",)).as_text().lower()
-
-
-@pytest.mark.parametrize("name", NAMES)
-def test_the_collision_map_annihilates_the_flow_direction(name, starts):
-    """``DP f(s) = 0``: moving the start along its own flight changes nothing after the collision, and the
-    flow's tangent map takes ``f(s)`` to ``f(s')``."""
-    scene = SCENES[name]
-    state = jnp.asarray(starts[name][0])
-    new_state, _, _, section_jacobian = jb.tangent_map(scene, state)
-    f = scene.phase_velocity(state)
-    assert float(jnp.max(jnp.abs(section_jacobian @ f))) < 1e-9 * float(jnp.max(jnp.abs(section_jacobian)))
-    *_, flow_jacobian = jb.tangent_map(scene, state, flow=True)
-    np.testing.assert_allclose(np.asarray(flow_jacobian @ f), np.asarray(scene.phase_velocity(new_state)), atol=1e-9)
 
 
 @pytest.mark.parametrize("name", ["triangle in stadium", "dumbbell 1:3 in ellipse", "point in stadium"])
@@ -157,16 +79,6 @@ def test_fli_map_through_the_kernel_equals_autodiff():
     np.testing.assert_allclose(kernel, autodiff, rtol=1e-9, atol=1e-9)
 
 
-@pytest.mark.parametrize("name", NAMES)
-def test_the_sampler_draws_valid_states_on_the_shell(name, starts):
-    scene = SCENES[name]
-    states = starts[name]
-    np.testing.assert_allclose(np.asarray(jb.energy(scene, states)), 0.5, rtol=1e-14)
-    assert np.all(np.asarray(scene.gaps(states)) > 0.0)
-    if scene.kind != "rotor":
-        assert np.all(states[:, 5] == 0.0)
-
-
 def test_the_sampler_pins_the_angular_momentum_in_a_circle():
     scene = SCENES["square in circle"]
     states, weights = jb.sample_energy_shell(scene, 50, angular_momentum=0.3, seed=2)
@@ -175,30 +87,6 @@ def test_the_sampler_pins_the_angular_momentum_in_a_circle():
     assert np.all(weights > 0)
     with pytest.raises(ValueError, match="angular_momentum"):
         jb.sample_energy_shell(SCENES["triangle in stadium"], 5, angular_momentum=0.3)
-
-
-@pytest.mark.parametrize("name", NAMES)
-def test_sections_invert_their_states(name):
-    """``section(section_state(point)) == point`` wherever a state exists, and a state is just after a
-    collision: the touching contact on its wall, leaving it."""
-    scene = SCENES[name]
-    if not scene.sections:
-        with pytest.raises(ValueError, match="name"):
-            scene.section(jnp.zeros((1, 6)))
-        return
-    chart = scene.section_chart
-    x_low, x_high = chart.x_range(scene)
-    rng = np.random.default_rng(4)
-    x = rng.uniform(x_low, x_high, 40)
-    edge = chart.edge(scene, x, chart.default_invariants(scene))
-    y = edge[:, 0] + (edge[:, 1] - edge[:, 0]) * rng.uniform(0.05, 0.95, 40)
-    states = np.asarray(scene.section_state(jnp.stack([x, y], axis=-1)))
-    found = np.all(np.isfinite(states), axis=1)
-    assert found.sum() >= 10, found.sum()
-    points = np.asarray(scene.section(states[found]))
-    np.testing.assert_allclose(points, np.stack([x, y], axis=-1)[found], atol=1e-10)
-    touching = np.min(np.abs(np.asarray(scene.gaps(states[found]))), axis=-1)
-    assert np.all(touching <= 1e-12 * float(scene.gap_scale))
 
 
 @pytest.mark.parametrize("name", ["point in stadium", "point in pentagon"])
@@ -215,23 +103,6 @@ def test_birkhoff_map_preserves_area_for_a_point(name):
 
     jacobian = jax.jacfwd(section_map)(point)
     assert abs(float(jnp.linalg.det(jacobian)) - 1.0) < 1e-9
-
-
-def test_the_explorers_chart_seeds_and_reads_the_coin_between_walls():
-    """The floor section's seeds are valid states; the points of their orbits stay within the chart's edge."""
-    scene = SCENES["coin between walls"]
-    chart = scene.section_chart
-    states, contacts = chart.seeds(scene, 12, chart.default_invariants(scene))
-    states = np.asarray(states)
-    good = np.all(np.isfinite(states), axis=1)
-    assert good.sum() >= 6
-    orbit = jb.orbit(scene, states[good], 60)
-    points = np.asarray(chart.points(scene, orbit.state, orbit.contact)).reshape(-1, 2)
-    points = points[np.all(np.isfinite(points), axis=1)]
-    bound = chart.edge(scene, points[:, 0], chart.default_invariants(scene))
-    assert np.all(points[:, 1] <= bound[:, 1] * (1 + 1e-9)) and np.all(points[:, 1] >= bound[:, 0] * (1 + 1e-9))
-    energy = np.asarray(jb.energy(scene, orbit.state)) - 0.5 * np.asarray(orbit.state[..., 3]) ** 2
-    np.testing.assert_allclose(energy, 0.5, rtol=1e-12)
 
 
 def test_periodic_orbits_of_the_stadium_have_their_closed_form_stability():

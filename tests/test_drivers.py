@@ -6,6 +6,9 @@ another. From identical states they must find the same contacts, in the same
 number of root steps, with states and times equal to rounding; and the state
 machine must handle what a batch throws at it: poisoned lanes, padding, lanes
 that run out of steps, ``n = 0``, records every ``k`` collisions and sections.
+These deep checks run over the hand-built scenes of ``scene_catalogue.py``;
+every scene of the catalogue, compositions included, also keeps the contract of
+``test_scene_contract.py`` (drivers, kernels, tangents, charts, bad input).
 """
 
 import jax
@@ -14,67 +17,15 @@ import numpy as np
 import pytest
 
 import jaxbill as jb
-from helpers import random_states
 from jaxbill._engine import collision as _collision
 from jaxbill._engine import lanes as _lanes
 from jaxbill._engine import step as _step
 from jaxbill._engine.first_root import first_root
+from scene_catalogue import hand_built as scenes
+from scene_catalogue import start_states
 
 INF = float("inf")
 N = 40
-
-
-def scenes():
-    return {
-        "rotor 1.9": jb.StickInCircle(R=2.0, ell=1.9),
-        "rotor 1.0": jb.StickInCircle(R=2.0, ell=1.0),
-        "lens": jb.StickInCircle(R=2.0, ell=1.5, inertia=INF),
-        "circle": jb.StickInCircle(R=2.0, ell=0.0),
-        "walls 2D": jb.StickBetweenWalls2D(h=3.0, ell=1.0),
-        "walls 2D static": jb.StickBetweenWalls2D(h=3.0, ell=1.0, inertia=INF),
-        "walls 3D": jb.StickBetweenWalls3D(h=3.0, ell=1.0),
-        "ellipse": jb.StickInEllipse(a=2.0, b=1.4, ell=0.5),
-        "ellipse static": jb.StickInEllipse(a=2.0, b=1.4, ell=0.5, inertia=INF),
-        "ellipse point": jb.StickInEllipse(a=2.0, b=1.4, ell=0.0),
-    }
-
-
-def start_states(scene, count, seed=7):
-    """Valid starts: the states just after a few collisions from random ones (any scene)."""
-    if isinstance(scene, jb.StickInCircle):
-        return np.asarray(random_states(np.random.default_rng(seed), count, 2.0, float(scene.ell), scene.kind))
-    rng = np.random.default_rng(seed)
-    if isinstance(scene, jb.StickInEllipse):
-        # Centres within 0.3 of the middle: both ends (ell <= 0.5) well inside b = 1.4.
-        radius, angle = 0.3 * np.sqrt(rng.uniform(size=count)), rng.uniform(-np.pi, np.pi, count)
-        v = rng.normal(size=(count, 2))
-        omega = 0.0 if scene.kind != "rotor" else rng.normal(size=count)
-        s = np.stack(
-            [
-                radius * np.cos(angle),
-                radius * np.sin(angle),
-                rng.uniform(-np.pi, np.pi, count),
-                v[:, 0],
-                v[:, 1],
-                np.broadcast_to(omega, (count,)),
-            ],
-            axis=1,
-        )
-        return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
-    if scene.state_size == 6:
-        z = rng.uniform(1.2, 1.8, count)
-        theta = rng.uniform(-np.pi, np.pi, count)
-        v = rng.normal(size=(count, 2))
-        omega = 0.0 if scene.kind == "static" else rng.normal(size=count)
-        s = np.stack([np.zeros(count), z, theta, v[:, 0], v[:, 1], np.broadcast_to(omega, (count,))], axis=1)
-        return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
-    u = rng.normal(size=(count, 3))
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    w = rng.normal(size=(count, 3))
-    w -= np.sum(w * u, axis=1, keepdims=True) * u
-    c = np.stack([np.zeros(count), np.zeros(count), rng.uniform(1.2, 1.8, count)], axis=1)
-    s = np.concatenate([c, u, rng.normal(size=(count, 3)), w], axis=1)
-    return np.asarray(jb.orbit(scene, s, 3, driver="lockstep").state[:, -1])
 
 
 @pytest.fixture(scope="module", params=list(scenes()))
@@ -383,18 +334,6 @@ def test_pallas_lane_out_of_root_steps_is_poisoned(monkeypatch):
     assert np.all(np.asarray(out.contact_counts)[:, code_zero] >= 1)  # the unproven collision: contact 0
 
 
-@pytest.mark.parametrize("name", list(scenes()))
-def test_pallas_kernel_lowers_for_cuda_without_a_gpu(name):
-    scene = scenes()[name]
-    states = jnp.zeros((64, scene.state_size))
-    lowered = (
-        jax.jit(lambda s, c: _pallas.pallas_final(scene, s, c, 10))
-        .trace(states, _lanes.fresh_carry(scene, states))
-        .lower(lowering_platforms=("cuda",))
-    )
-    assert "triton" in lowered.as_text().lower() or "__gpu$xla$gpu$triton" in lowered.as_text()
-
-
 def _fli_starting_vectors(scene, states):
     from jaxbill._analysis.indicators import _initial_vector
     from jaxbill._engine.tangent import to_state_space
@@ -418,17 +357,6 @@ def test_pallas_kernel_carries_the_tangent_as_jb_fli(name):
     np.testing.assert_allclose(np.asarray(fli), np.asarray(expected.value), rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(np.asarray(log_norm), np.asarray(expected.log_norm), rtol=1e-9, atol=1e-9)
     assert float(jnp.max(fli)) > 1.0  # the vectors really stretched
-
-
-def test_pallas_tangent_kernel_lowers_for_cuda():
-    scene = jb.StickInCircle(R=2.0, ell=1.9)
-    states = jnp.zeros((64, 6))
-    lowered = (
-        jax.jit(lambda s, w: _pallas.pallas_fli(scene, s, w, 10))
-        .trace(states, states)
-        .lower(lowering_platforms=("cuda",))
-    )
-    assert "triton" in lowered.as_text().lower()
 
 
 def test_fli_map_through_the_kernel_equals_the_autodiff_map():

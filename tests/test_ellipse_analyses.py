@@ -21,7 +21,6 @@ jb = pytest.importorskip("jaxbill")
 import jax.numpy as jnp  # noqa: E402
 
 from jaxbill._check.checker import flight_for  # noqa: E402
-from jaxbill._scenes import protocols as _scene  # noqa: E402
 from jaxbill._scenes.ellipse.sections import arc_length, ellipse_length  # noqa: E402
 
 A, B = 2.0, 1.3
@@ -183,16 +182,6 @@ SCENES = [
     jb.StickBetweenWalls2D(h=3.0, ell=1.0),
     jb.StickBetweenWalls3D(h=3.0, ell=1.0),
 ]
-
-
-@pytest.mark.parametrize("scene", SCENES, ids=lambda s: type(s).__name__)
-def test_every_scene_answers_the_capability_protocols(scene):
-    assert scene.area_preserving_section in scene.sections
-    assert scene.periodic_symmetry in _scene.PERIODIC_SYMMETRIES
-    assert isinstance(flight_for(scene, scene.checker_flight()), _scene.CheckerFlight)
-    assert isinstance(scene.section_chart, _scene.SectionChart)
-    with pytest.raises(ValueError, match="name must be one of"):
-        scene.section(jnp.zeros((1, scene.state_size)), jnp.ones(1, jnp.int32), name="no such section")
 
 
 def test_symmetries_are_the_scenes_own():
