@@ -42,6 +42,18 @@ def _starts(cache, name):
     return cache[name]
 
 
+def _chart(scene):
+    """The explorer's chart of ``scene``, or None where the explorer refuses it (and then says why)."""
+    try:
+        return section_chart(scene)
+    except TypeError as refused:
+        assert str(refused).startswith("scene: ") and "section" in str(refused)
+        return None
+
+
+CHARTED = [name for name in NAMES if SCENES[name].sections and _chart(SCENES[name]) is not None]
+
+
 def test_the_catalogue_holds_every_public_scene_body_table_and_piece():
     """A public scene class, body, table or wall piece the catalogue leaves out would escape the contract."""
     public = [getattr(jb, name) for name in jb.__all__]
@@ -153,18 +165,6 @@ def test_the_sampler_draws_valid_states_on_the_shell_or_says_it_has_none(name):
     assert np.all(np.asarray(scene.gaps(states)) > 0.0) and np.all(np.asarray(weights) > 0)
     if not scene.body_turns:
         assert np.all(np.asarray(states)[:, 5] == 0.0)
-
-
-def _chart(scene):
-    """The explorer's chart of ``scene``, or None where the explorer refuses it (and then says why)."""
-    try:
-        return section_chart(scene)
-    except TypeError as refused:
-        assert str(refused).startswith("scene: ") and "section" in str(refused)
-        return None
-
-
-CHARTED = [name for name in NAMES if SCENES[name].sections and _chart(SCENES[name]) is not None]
 
 
 @pytest.mark.parametrize("name", NAMES)
