@@ -4,6 +4,7 @@ panel's common value."""
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 
@@ -63,3 +64,14 @@ def common_value(values):
     if np.allclose(values, values.flat[0], rtol=1e-12, atol=1e-12):
         return round(float(values.flat[0]), 12)
     return values.tolist()
+
+
+def figure_record(name: str, file: str, description: str, panels: list, started: float) -> dict:
+    """One figure's entry in the summary: its name, PNG, description, panels and seconds since ``started``."""
+    return {
+        "name": name,
+        "file": file,
+        "description": description,
+        "panels": panels,
+        "seconds": time.perf_counter() - started,
+    }

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from jaxbill._analysis.chaos import sample_energy_shell
 from jaxbill._engine.collision import orbit as run_orbit
-from jaxbill._figures.common import ENERGY, Settings
+from jaxbill._figures.common import ENERGY, Settings, figure_record
 from jaxbill._scenes.bodies.dumbbell import Dumbbell
 from jaxbill._scenes.bodies.ellipse import EllipseBody
 from jaxbill._scenes.bodies.point import PointBody
@@ -112,12 +112,5 @@ def make_compositions_figures(settings: Settings, save, bar) -> list:
     )
     path = save(fig, COMPOSITIONS_FILES[0])
     bar.advance("compositions")
-    return [
-        {
-            "name": "compositions",
-            "file": path,
-            "panels": records,
-            "seconds": time.perf_counter() - t0,
-            "description": "bodies in tables: a triangle, a 1:3 dumbbell, a square, a point and a coin, one orbit each",
-        }
-    ]
+    description = "bodies in tables: a triangle, a 1:3 dumbbell, a square, a point and a coin, one orbit each"
+    return [figure_record("compositions", path, description, records, t0)]

@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 
 from jaxbill import plotting
 from jaxbill._engine.collision import orbit as run_orbit
-from jaxbill._figures.common import ENERGY, Settings
+from jaxbill._figures.common import ENERGY, Settings, figure_record
 from jaxbill._scenes.ellipse.scene import StickInEllipse
 from jaxbill._scenes.ellipse.sections import draw_ellipse_orbit, ellipse_length
 
@@ -81,12 +81,5 @@ def make_ellipse_figures(settings: Settings, save, bar) -> list:
     fig.suptitle(f"Stick in an ellipse: {count} orbits x {n} collisions per section, E = 1/2")
     path = save(fig, ELLIPSE_FILES[0])
     bar.advance("ellipse")
-    return [
-        {
-            "name": "ellipse",
-            "file": path,
-            "panels": records,
-            "seconds": time.perf_counter() - t0,
-            "description": "stick in an ellipse: one trajectory, the point's Birkhoff section, the stick's",
-        }
-    ]
+    description = "stick in an ellipse: one trajectory, the point's Birkhoff section, the stick's"
+    return [figure_record("ellipse", path, description, records, t0)]

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from jaxbill import plotting
 from jaxbill._analysis.section_measures import CHAOTIC_DIVERGENCE, curve_thickness, divergence, twin_states
 from jaxbill._engine.collision import orbit as run_orbit
-from jaxbill._figures.common import ENERGY, Settings, common_value
+from jaxbill._figures.common import ENERGY, Settings, common_value, figure_record
 from jaxbill._scenes.circle.scene import StickInCircle
 from jaxbill._scenes.circle.sections import (
     half_corner_angle,
@@ -161,15 +161,7 @@ def make_paper_figures(settings: Settings, save, bar) -> list:
     figures = []
 
     def add_figure(name: str, fig: Figure, png: str, description: str, panels: list, t0: float) -> None:
-        figures.append(
-            {
-                "name": name,
-                "file": save(fig, png),
-                "description": description,
-                "panels": panels,
-                "seconds": time.perf_counter() - t0,
-            }
-        )
+        figures.append(figure_record(name, save(fig, png), description, panels, t0))
 
     # Fig. 1 and the spiral column: one orbit at ell = 1.
     t0 = time.perf_counter()

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from jaxbill import plotting
 from jaxbill._analysis.section_measures import CHAOTIC_DIVERGENCE, count_islands
-from jaxbill._figures.common import TWIN_DELTA, Settings, common_value
+from jaxbill._figures.common import TWIN_DELTA, Settings, common_value, figure_record
 from jaxbill._scenes.walls import sections as ws
 from jaxbill._scenes.walls.scene_2d import StickBetweenWalls2D
 from jaxbill._scenes.walls.scene_3d import StickBetweenWalls3D
@@ -159,16 +159,10 @@ def make_walls_figures(settings: Settings, save, bar) -> list:
         "(bottom); grey: chaotic, colours: regular"
     )
     path = save(fig, WALLS_FILES[0])
-    out.append(
-        {
-            "name": "walls_sections",
-            "file": path,
-            "description": "stick between walls: 2D floor sections (top) and 3D reduced sections at L_z != 0 "
-            "(bottom) as h varies",
-            "panels": records,
-            "seconds": time.perf_counter() - t0,
-        }
+    description = (
+        "stick between walls: 2D floor sections (top) and 3D reduced sections at L_z != 0 (bottom) as h varies"
     )
+    out.append(figure_record("walls_sections", path, description, records, t0))
     bar.advance("walls: sections")
 
     t0 = time.perf_counter()
@@ -204,14 +198,7 @@ def make_walls_figures(settings: Settings, save, bar) -> list:
             f"{k} flights in the (kappa theta, z) plane (kappa = ell); dotted: the L_z barrier"
         )
         path = save(fig, WALLS_FILES[1])
-        out.append(
-            {
-                "name": "walls_3d_flights",
-                "file": path,
-                "description": "flights in the (ell theta, z) plane: 2D, 3D with L_z = 0, 3D with L_z != 0",
-                "panels": records,
-                "seconds": time.perf_counter() - t0,
-            }
-        )
+        description = "flights in the (ell theta, z) plane: 2D, 3D with L_z = 0, 3D with L_z != 0"
+        out.append(figure_record("walls_3d_flights", path, description, records, t0))
     bar.advance("walls: 3D flights")
     return out
