@@ -407,12 +407,15 @@ __all__ = [
 __version__ = "0.1.0"
 
 
+_MODULE_OF = {name: module for module, names in _PUBLIC.items() for name in names}
+
+
 def __getattr__(name: str):
-    for module, names in _PUBLIC.items():
-        if name in names:
-            value = getattr(importlib.import_module(module), name)
-            globals()[name] = value
-            return value
+    module = _MODULE_OF.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(module), name)
+        globals()[name] = value  # found directly from now on
+        return value
     if not name.startswith("_"):  # a public subpackage or module: jb.plotting, jb.studies
         try:
             return importlib.import_module(f"{__name__}.{name}")

@@ -12,6 +12,7 @@ chart's reachable edge, and the library's stated errors for bad starts.
 
 from __future__ import annotations
 
+import functools
 import inspect
 
 import jax
@@ -30,16 +31,10 @@ from scene_catalogue import NAMES, SCENES, start_states
 R = jb.Result
 
 
-@pytest.fixture(scope="module")
-def starts():
-    """Eight valid starts per scene (``scene_catalogue.start_states``), drawn when a test first asks."""
-    return {}
-
-
-def _starts(cache, name):
-    if name not in cache:
-        cache[name] = start_states(SCENES[name], 8, seed=3)
-    return cache[name]
+@functools.cache
+def _starts(name: str) -> np.ndarray:
+    """Eight valid starts of scene ``name`` (``scene_catalogue.start_states``), drawn when a test first asks."""
+    return start_states(SCENES[name], 8, seed=3)
 
 
 def _chart(scene):
@@ -94,11 +89,11 @@ def _close(a, b):
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_drivers_agree_and_run_is_orbit_bit_for_bit(name, starts):
+def test_drivers_agree_and_run_is_orbit_bit_for_bit(name):
     """Serial, lockstep, the lane state machine and the Pallas kernel (interpret mode) take the same
     collisions; ``jb.run`` and ``jb.orbit``, one program twice, agree bit for bit; every contact code is
     one the scene declares, every orbit finishes, and every collision keeps the energy (elastic impulse)."""
-    scene, states = SCENES[name], _starts(starts, name)
+    scene, states = SCENES[name], _starts(name)
     reference = jb.orbit(scene, states, 8, driver="serial")
     assert np.all(np.isfinite(np.asarray(reference.t)))
     np.testing.assert_array_equal(np.asarray(reference.result), R.FINISHED)
@@ -139,11 +134,11 @@ def test_pallas_kernels_lower_for_cuda(name):
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_the_collision_map_annihilates_the_flow_direction(name, starts):
+def test_the_collision_map_annihilates_the_flow_direction(name):
     """``DP f(s) = 0``: moving the start along its own flight changes nothing after the collision; the
     flow's tangent map takes ``f(s)`` to ``f(s')``."""
     scene = SCENES[name]
-    state = jnp.asarray(_starts(starts, name)[0])
+    state = jnp.asarray(_starts(name)[0])
     new_state, _, _, section_jacobian = jb.tangent_map(scene, state)
     f = jb.phase_velocity(scene, state)
     assert float(jnp.max(jnp.abs(section_jacobian @ f))) < 1e-9 * float(jnp.max(jnp.abs(section_jacobian)))
@@ -228,11 +223,11 @@ def _outside(scene, states):
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_bad_starts_are_refused_by_name_and_poisoned_under_jit(name, starts):
+def test_bad_starts_are_refused_by_name_and_poisoned_under_jit(name):
     """Eagerly: a start outside the table, a non-finite one and a wrongly shaped one raise ``ValueError``
     naming ``state``. Under ``jit``, where nothing can raise, the non-finite start's orbit is NaN and says
     ``INVALID_START`` while its neighbours finish."""
-    scene, states = SCENES[name], _starts(starts, name)[:3]
+    scene, states = SCENES[name], _starts(name)[:3]
     outside = _outside(scene, states)
     with pytest.raises(ValueError, match="^state .*outside"):
         jb.orbit(scene, outside, 2)
